@@ -1,0 +1,29 @@
+//! Type aliases and small numeric helpers, so the code is not written against raw nalgebra types.
+
+/// A point or vector in 3D, f64.
+pub type Vec3 = nalgebra::Vector3<f64>;
+/// A 3x3 matrix, f64 (inertia tensors, rotations).
+pub type Mat3 = nalgebra::Matrix3<f64>;
+
+/// A uniform f64 in [0, 1) from 53 random bits of a 64-bit word.
+///
+/// Written out rather than taken from `rand`'s distributions so that the mapping from generator
+/// output to numbers is ours and cannot change with a `rand` release: same seed, same bytes.
+pub fn unit_f64(bits: u64) -> f64 {
+    (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// Axis-aligned bounding box of points: (min, max). `None` for no points.
+pub fn bounding_box(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
+    let first = *points.first()?;
+    Some(
+        points
+            .iter()
+            .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))),
+    )
+}
+
+/// Length of the bounding-box diagonal (0 for no points): the scale that relative tolerances use.
+pub fn extent(points: &[Vec3]) -> f64 {
+    bounding_box(points).map_or(0.0, |(lo, hi)| (hi - lo).norm())
+}
