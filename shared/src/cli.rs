@@ -1,1 +1,171 @@
+//! What every tool shares: one way to run and exit, stream plumbing, provenance, progress.
+//!
+//! Exit codes: 0 success (also when the reader of our output went away: a broken pipe is not an
+//! error), 1 bad data or a failed computation, 2 bad usage (clap's own code).
 
+use crate::obj::{Item, ObjObject, ObjReader};
+use rayon::prelude::*;
+use std::io::{self, BufRead, BufWriter, IsTerminal};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+/// Runs a tool's body: prints an error once as `tool: message` (with its causes) and maps it to
+/// an exit code; a broken pipe ends quietly with success.
+pub fn run(tool: &str, body: impl FnOnce() -> anyhow::Result<()>) -> ExitCode {
+    match body() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
+        Err(e) => {
+            let mut msg = format!("{tool}: {e}");
+            for cause in e.chain().skip(1) {
+                msg.push_str(&format!(": {cause}"));
+            }
+            eprintln!("{msg}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<io::Error>()
+            .is_some_and(|io| io.kind() == io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// Buffered standard output (flush it with `flush()?` so errors are seen).
+pub fn stdout() -> BufWriter<io::StdoutLock<'static>> {
+    BufWriter::with_capacity(1 << 16, io::stdout().lock())
+}
+
+/// Buffered standard input.
+pub fn stdin() -> io::BufReader<io::StdinLock<'static>> {
+    io::BufReader::with_capacity(1 << 16, io::stdin().lock())
+}
+
+/// The provenance comment a tool adds to a stream: ` tool version args...` (no leading `#`).
+pub fn provenance(tool: &str) -> String {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    format!(" {tool} {} {}", env!("CARGO_PKG_VERSION"), args.join(" "))
+        .trim_end()
+        .to_string()
+}
+
+/// Progress on standard error, shown only when it is a terminal, at most twice a second.
+pub struct Progress {
+    tool: &'static str,
+    show: bool,
+    last: Instant,
+    start: Instant,
+}
+
+impl Progress {
+    pub fn new(tool: &'static str) -> Self {
+        let now = Instant::now();
+        Progress {
+            tool,
+            show: io::stderr().is_terminal(),
+            last: now,
+            start: now,
+        }
+    }
+
+    /// Reports `done` units of `what`.
+    pub fn tick(&mut self, done: u64, what: &str) {
+        if self.show && self.last.elapsed() > Duration::from_millis(500) {
+            self.last = Instant::now();
+            eprint!(
+                "\r{}: {done} {what} ({:.1} s)",
+                self.tool,
+                self.start.elapsed().as_secs_f64()
+            );
+        }
+    }
+
+    /// Ends the progress line.
+    pub fn finish(&self) {
+        if self.show && self.start.elapsed() > Duration::from_millis(500) {
+            eprintln!();
+        }
+    }
+}
+
+/// What a batched stream pass hands back, in input order.
+pub enum Emit<T> {
+    Comment(String),
+    Done(T),
+}
+
+/// Reads an OBJ stream and runs `work` on each object, `batch` objects at a time in parallel,
+/// handing comments and results to `emit` in input order. Stops at the first error in input
+/// order, after emitting everything before it (so no object is half-written). Returns the number
+/// of objects; memory holds one batch.
+pub fn for_each_object<R: BufRead, T: Send>(
+    tool: &'static str,
+    input: R,
+    batch: usize,
+    work: impl Fn(ObjObject) -> anyhow::Result<T> + Sync,
+    mut emit: impl FnMut(Emit<T>) -> anyhow::Result<()>,
+) -> anyhow::Result<u64> {
+    let mut reader = ObjReader::new(input);
+    let mut progress = Progress::new(tool);
+    let mut count = 0u64;
+    loop {
+        let mut items = Vec::new();
+        let mut objects = 0;
+        let mut read_error = None;
+        while objects < batch {
+            match reader.next() {
+                None => break,
+                Some(Err(e)) => {
+                    read_error = Some(e);
+                    break;
+                }
+                Some(Ok(item)) => {
+                    objects += matches!(item, Item::Object(_)) as usize;
+                    items.push(item);
+                }
+            }
+        }
+        let end = items.is_empty() && read_error.is_none();
+        let results: Vec<anyhow::Result<Emit<T>>> = items
+            .into_par_iter()
+            .map(|item| match item {
+                Item::Comment(c) => Ok(Emit::Comment(c)),
+                Item::Object(o) => work(o).map(Emit::Done),
+            })
+            .collect();
+        for r in results {
+            let e = r?;
+            count += matches!(e, Emit::Done(_)) as u64;
+            emit(e)?;
+        }
+        progress.tick(count, "objects");
+        if let Some(e) = read_error {
+            return Err(e.into());
+        }
+        if end {
+            progress.finish();
+            return Ok(count);
+        }
+    }
+}
+
+/// Parses `N` or `A..B` (inclusive) into a range of integers.
+pub fn parse_range<T: std::str::FromStr + PartialOrd + Copy>(s: &str) -> Result<(T, T), String> {
+    let parse = |x: &str| {
+        x.trim()
+            .parse::<T>()
+            .map_err(|_| format!("'{x}' is not a whole number"))
+    };
+    match s.split_once("..") {
+        Some((a, b)) => {
+            let (a, b) = (parse(a)?, parse(b.trim_start_matches('='))?);
+            if a > b {
+                return Err(format!("empty range '{s}': the start is after the end"));
+            }
+            Ok((a, b))
+        }
+        None => parse(s).map(|a| (a, a)),
+    }
+}

@@ -1,1 +1,1 @@
-
+//! Line charts from tables.
