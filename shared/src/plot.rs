@@ -1,1 +1,284 @@
-//! Line charts from tables.
+//! Line charts from tables: lines with optional bands (spread), drawn with `plotters` into an
+//! RGB buffer (no system font or image library: the font is DejaVu Sans, bundled by a crate).
+
+use crate::render::Image;
+use plotters::prelude::*;
+use std::collections::BTreeMap;
+use std::sync::Once;
+
+/// One line of a chart, with an optional band (x, low, high) drawn behind it.
+#[derive(Clone, Debug, Default)]
+pub struct Series {
+    pub label: String,
+    pub points: Vec<(f64, f64)>,
+    pub band: Vec<(f64, f64, f64)>,
+    /// Colour slot (series with the same slot share a colour).
+    pub color: usize,
+    pub dashed: bool,
+}
+
+/// A chart: title, axis labels, series.
+#[derive(Clone, Debug, Default)]
+pub struct Chart {
+    pub title: String,
+    pub xlabel: String,
+    pub ylabel: String,
+    pub series: Vec<Series>,
+}
+
+const COLORS: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+];
+
+fn register_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
+            .map_err(|_| ())
+            .expect("bundled DejaVu Sans is a valid font");
+    });
+}
+
+/// Draws the chart into a `width` x `height` picture.
+pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
+    register_font();
+    let mut buf = vec![255u8; (width * height * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let all = chart.series.iter().flat_map(|s| {
+            s.points
+                .iter()
+                .map(|&(x, y)| (x, y, y))
+                .chain(s.band.iter().copied())
+        });
+        let (mut x0, mut x1, mut y0, mut y1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for (x, lo, hi) in all {
+            if x.is_finite() && lo.is_finite() && hi.is_finite() {
+                x0 = x0.min(x);
+                x1 = x1.max(x);
+                y0 = y0.min(lo);
+                y1 = y1.max(hi);
+            }
+        }
+        if !x0.is_finite() {
+            return Err("nothing to plot: no finite points".into());
+        }
+        let padx = ((x1 - x0) * 0.04).max(1e-9);
+        let pady = ((y1 - y0) * 0.08).max(1e-9);
+        let mut ctx = ChartBuilder::on(&root)
+            .caption(&chart.title, ("sans-serif", 22))
+            .margin(14)
+            .x_label_area_size(44)
+            .y_label_area_size(64)
+            .build_cartesian_2d((x0 - padx)..(x1 + padx), (y0 - pady)..(y1 + pady))
+            .map_err(|e| e.to_string())?;
+        let integer_x = chart
+            .series
+            .iter()
+            .all(|s| s.points.iter().all(|p| p.0.fract() == 0.0));
+        let fmt_x = move |x: &f64| {
+            if integer_x {
+                format!("{x:.0}")
+            } else {
+                format!("{x}")
+            }
+        };
+        ctx.configure_mesh()
+            .x_label_formatter(&fmt_x)
+            .x_desc(&chart.xlabel)
+            .y_desc(&chart.ylabel)
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 16))
+            .light_line_style(RGBColor(235, 235, 235))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for s in &chart.series {
+            let c = COLORS[s.color % COLORS.len()];
+            if s.band.len() > 1 {
+                let mut poly: Vec<(f64, f64)> = s.band.iter().map(|&(x, lo, _)| (x, lo)).collect();
+                poly.extend(s.band.iter().rev().map(|&(x, _, hi)| (x, hi)));
+                ctx.draw_series(std::iter::once(Polygon::new(
+                    poly,
+                    c.mix(if s.dashed { 0.08 } else { 0.16 }),
+                )))
+                .map_err(|e| e.to_string())?;
+            }
+        }
+        for s in &chart.series {
+            let c = COLORS[s.color % COLORS.len()];
+            let style = c.stroke_width(2);
+            let drawn = if s.dashed {
+                ctx.draw_series(DashedLineSeries::new(s.points.clone(), 8, 5, style))
+            } else {
+                ctx.draw_series(LineSeries::new(s.points.clone(), style))
+            }
+            .map_err(|e| e.to_string())?;
+            let dashed = s.dashed;
+            drawn.label(&s.label).legend(move |(x, y)| {
+                let segs: Vec<(i32, i32)> = if dashed {
+                    vec![(x, y), (x + 7, y)]
+                } else {
+                    vec![(x, y), (x + 18, y)]
+                };
+                EmptyElement::at((x, y))
+                    + PathElement::new(segs, c.stroke_width(2))
+                    + PathElement::new(
+                        if dashed {
+                            vec![(x + 11, y), (x + 18, y)]
+                        } else {
+                            vec![]
+                        },
+                        c.stroke_width(2),
+                    )
+            });
+            ctx.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))
+                .map_err(|e| e.to_string())?;
+        }
+        ctx.configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.3))
+            .label_font(("sans-serif", 13))
+            .position(SeriesLabelPosition::LowerRight)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(Image {
+        width,
+        height,
+        rgb: buf,
+    })
+}
+
+/// Summary statistics of one group of values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stats {
+    pub n: usize,
+    pub mean: f64,
+    pub std: f64,
+    pub min: f64,
+    pub max: f64,
+    pub p05: f64,
+    pub p95: f64,
+}
+
+impl Stats {
+    /// Statistics of `values` (sample standard deviation; 0 for one value). `None` if empty.
+    pub fn of(values: &[f64]) -> Option<Stats> {
+        if values.is_empty() {
+            return None;
+        }
+        let mut v = values.to_vec();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let mean = v.iter().sum::<f64>() / n as f64;
+        let var = if n > 1 {
+            v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64
+        } else {
+            0.0
+        };
+        let q = |p: f64| v[((n - 1) as f64 * p).round() as usize];
+        Some(Stats {
+            n,
+            mean,
+            std: var.sqrt(),
+            min: v[0],
+            max: v[n - 1],
+            p05: q(0.05),
+            p95: q(0.95),
+        })
+    }
+}
+
+/// Groups `(series key, x, y)` rows and returns, per series key (sorted) and x (sorted), the
+/// statistics of y.
+pub fn group_stats(rows: &[(String, f64, f64)]) -> BTreeMap<String, Vec<(f64, Stats)>> {
+    let mut groups: BTreeMap<String, BTreeMap<u64, (f64, Vec<f64>)>> = BTreeMap::new();
+    for (key, x, y) in rows {
+        // Order x by its value: map f64 to a monotone integer key.
+        let bits = x.to_bits();
+        let ord = if bits >> 63 == 1 {
+            !bits
+        } else {
+            bits | (1 << 63)
+        };
+        groups
+            .entry(key.clone())
+            .or_default()
+            .entry(ord)
+            .or_insert((*x, Vec::new()))
+            .1
+            .push(*y);
+    }
+    groups
+        .into_iter()
+        .map(|(k, xs)| {
+            (
+                k,
+                xs.into_values()
+                    .filter_map(|(x, ys)| Stats::of(&ys).map(|s| (x, s)))
+                    .collect(),
+            )
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_of_known_values() {
+        let s = Stats::of(&[1.0, 2.0, 3.0, 4.0]).unwrap();
+        assert_eq!((s.n, s.mean, s.min, s.max), (4, 2.5, 1.0, 4.0));
+        assert!((s.std - (5.0f64 / 3.0).sqrt()).abs() < 1e-15);
+        assert!(Stats::of(&[]).is_none());
+    }
+
+    #[test]
+    fn groups_are_sorted_by_key_and_x() {
+        let rows = vec![
+            ("b".into(), 2.0, 1.0),
+            ("a".into(), 10.0, 5.0),
+            ("a".into(), -1.0, 3.0),
+            ("a".into(), 10.0, 7.0),
+        ];
+        let g = group_stats(&rows);
+        let a = &g["a"];
+        assert_eq!(a.len(), 2);
+        assert_eq!(a[0].0, -1.0);
+        assert_eq!(a[1].1.mean, 6.0);
+        assert_eq!(g.keys().collect::<Vec<_>>(), ["a", "b"]);
+    }
+
+    #[test]
+    fn a_chart_draws() {
+        let chart = Chart {
+            title: "t".into(),
+            xlabel: "x".into(),
+            ylabel: "y".into(),
+            series: vec![Series {
+                label: "s".into(),
+                points: vec![(0.0, 1.0), (1.0, 2.0)],
+                band: vec![(0.0, 0.5, 1.5), (1.0, 1.5, 2.5)],
+                ..Default::default()
+            }],
+        };
+        let img = draw(&chart, 300, 200).unwrap();
+        assert!(img.rgb.iter().any(|&v| v != 255));
+        assert!(draw(&Chart::default(), 300, 200).is_err());
+    }
+}

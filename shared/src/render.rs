@@ -1,7 +1,430 @@
-//! OBJ meshes to shaded PNG pictures.
+//! OBJ meshes to shaded PNG pictures: a small software rasteriser.
+//!
+//! Objects are grouped into cells by the part of their name before the first `/` (all objects
+//! of `fig1/sphere` and `fig1/plane3` share the cell `fig1`); a cell's label is its name. Each
+//! cell is drawn with an orthographic camera, a z-buffer, two-sided Lambert shading from one
+//! light plus ambient, and the polygon edges (not the triangulation) as dark lines; the picture
+//! is supersampled for smooth edges. An object's `color=RRGGBB` attribute sets its colour and
+//! `edges=no` hides its edges.
 
 use crate::math::Vec3;
 use crate::mesh::PolyMesh;
+use ab_glyph::{Font, FontRef, PxScale, ScaleFont};
+use std::io::Write;
+
+/// An RGB picture, 8 bits per channel, rows top to bottom.
+#[derive(Clone, Debug)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub rgb: Vec<u8>,
+}
+
+impl Image {
+    /// Writes the picture as PNG.
+    pub fn write_png(&self, out: impl Write) -> Result<(), png::EncodingError> {
+        let mut enc = png::Encoder::new(out, self.width, self.height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header()?;
+        w.write_image_data(&self.rgb)?;
+        w.finish()
+    }
+}
+
+/// How to draw.
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub width: u32,
+    pub height: u32,
+    /// Cells per row (default: about square).
+    pub cols: Option<usize>,
+    /// Camera azimuth and elevation, degrees.
+    pub azimuth: f64,
+    pub elevation: f64,
+    pub edges: bool,
+    /// One scale for all cells (sizes comparable) instead of each cell filled.
+    pub same_scale: bool,
+    pub title: Option<String>,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            width: 1200,
+            height: 800,
+            cols: None,
+            azimuth: 35.0,
+            elevation: 25.0,
+            edges: true,
+            same_scale: false,
+            title: None,
+        }
+    }
+}
+
+/// A cell: a label and the objects drawn in it, each with its colour.
+#[derive(Clone, Debug)]
+pub struct Cell {
+    pub label: String,
+    pub objects: Vec<(PolyMesh, [f32; 3])>,
+}
+
+const PALETTE: [[u8; 3]; 6] = [
+    [224, 140, 60],
+    [60, 120, 200],
+    [90, 170, 100],
+    [200, 80, 90],
+    [150, 110, 190],
+    [120, 120, 120],
+];
+
+fn parse_color(s: &str) -> Option<[f32; 3]> {
+    let s = s.trim_start_matches('#');
+    if s.len() != 6 {
+        return None;
+    }
+    let c = |i: usize| {
+        u8::from_str_radix(&s[i..i + 2], 16)
+            .ok()
+            .map(|v| v as f32 / 255.0)
+    };
+    Some([c(0)?, c(2)?, c(4)?])
+}
+
+/// Groups meshes into cells by name prefix (before the first `/`), in order of first appearance.
+pub fn group_cells(meshes: Vec<PolyMesh>) -> Vec<Cell> {
+    let mut cells: Vec<Cell> = Vec::new();
+    for m in meshes {
+        let label = m.name.split('/').next().unwrap_or("").to_string();
+        let idx = match cells.iter().position(|c| c.label == label) {
+            Some(i) => i,
+            None => {
+                cells.push(Cell {
+                    label,
+                    objects: Vec::new(),
+                });
+                cells.len() - 1
+            }
+        };
+        let n = cells[idx].objects.len();
+        let color = m
+            .attrs
+            .get("color")
+            .and_then(parse_color)
+            .unwrap_or_else(|| PALETTE[n % PALETTE.len()].map(|v| v as f32 / 255.0));
+        cells[idx].objects.push((m, color));
+    }
+    cells
+}
+
+const SS: usize = 2; // supersampling factor per axis
+
+struct Canvas {
+    w: usize,
+    h: usize,
+    color: Vec<[f32; 3]>,
+    depth: Vec<f32>,
+}
+
+impl Canvas {
+    fn blend(&mut self, x: usize, y: usize, c: [f32; 3], a: f32) {
+        let p = &mut self.color[y * self.w + x];
+        for k in 0..3 {
+            p[k] = p[k] * (1.0 - a) + c[k] * a;
+        }
+    }
+}
+
+/// Draws the cells into one picture.
+pub fn render(cells: &[Cell], opts: &Options) -> Image {
+    let (w, h) = (opts.width as usize * SS, opts.height as usize * SS);
+    let mut cv = Canvas {
+        w,
+        h,
+        color: vec![[1.0; 3]; w * h],
+        depth: vec![f32::NEG_INFINITY; w * h],
+    };
+    let font =
+        FontRef::try_from_slice(dejavu::sans::regular()).expect("bundled DejaVu Sans parses");
+    let title_h = if opts.title.is_some() { h / 12 } else { 0 };
+    let n = cells.len().max(1);
+    let cols = opts
+        .cols
+        .unwrap_or_else(|| {
+            (n as f64 * opts.width as f64 / opts.height as f64)
+                .sqrt()
+                .ceil() as usize
+        })
+        .clamp(1, n);
+    let rows = n.div_ceil(cols);
+    let (cw, ch) = (w / cols, (h - title_h) / rows);
+    let label_h = (ch / 9).clamp(14 * SS, 40 * SS);
+    // View frame: d points from the scene to the camera, z up.
+    let (az, el) = (opts.azimuth.to_radians(), opts.elevation.to_radians());
+    let d = Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+    let right = Vec3::z().cross(&d).normalize();
+    let up = d.cross(&right);
+    let light = (d * 0.8 + up * 0.5 - right * 0.35).normalize();
+    let bounds: Vec<(Vec3, f64)> = cells.iter().map(bounding_ball).collect();
+    let max_r = bounds.iter().map(|b| b.1).fold(0.0, f64::max);
+    for (i, cell) in cells.iter().enumerate() {
+        let (cx0, cy0) = ((i % cols) * cw, title_h + (i / cols) * ch);
+        let (centre, r) = bounds[i];
+        let r = if opts.same_scale { max_r } else { r };
+        if r <= 0.0 {
+            continue;
+        }
+        let avail = (cw.min(ch - label_h)) as f64;
+        let scale = 0.92 * avail / (2.0 * r);
+        let ox = cx0 as f64 + cw as f64 / 2.0;
+        let oy = cy0 as f64 + label_h as f64 + (ch - label_h) as f64 / 2.0;
+        let project = |p: &Vec3| {
+            let q = p - centre;
+            [
+                ox + q.dot(&right) * scale,
+                oy - q.dot(&up) * scale,
+                q.dot(&d) * scale,
+            ]
+        };
+        let clip = (cx0, cy0 + label_h, cx0 + cw, cy0 + ch);
+        for (mesh, color) in &cell.objects {
+            let screen: Vec<[f64; 3]> = mesh.vertices.iter().map(project).collect();
+            for f in 0..mesh.face_count() {
+                let idx = mesh.face(f);
+                let c = project(&mesh.face_centroid(f));
+                let cw3 = mesh.face_centroid(f);
+                for k in 0..idx.len() {
+                    let (a, b) = (idx[k] as usize, idx[(k + 1) % idx.len()] as usize);
+                    let n = (mesh.vertices[a] - cw3).cross(&(mesh.vertices[b] - cw3));
+                    let len = n.norm();
+                    if len == 0.0 {
+                        continue;
+                    }
+                    let n = n / len;
+                    let n = if n.dot(&d) < 0.0 { -n } else { n };
+                    let shade = (0.38 + 0.62 * n.dot(&light).max(0.0)) as f32;
+                    let col = color.map(|x| (x * shade).min(1.0));
+                    fill_triangle(&mut cv, [c, screen[a], screen[b]], col, clip);
+                }
+            }
+            if opts.edges && mesh.attrs.get("edges") != Some("no") {
+                let dense = mesh.face_verts.len() > 1200;
+                let thick = if dense { 0.6 } else { 1.1 } * SS as f64;
+                let ecol = color.map(|x| x * 0.35);
+                let bias = 0.004 * 2.0 * r * scale;
+                for f in 0..mesh.face_count() {
+                    let idx = mesh.face(f);
+                    for k in 0..idx.len() {
+                        let (a, b) = (idx[k], idx[(k + 1) % idx.len()]);
+                        if a < b || mesh.face_count() == 1 {
+                            draw_line(
+                                &mut cv,
+                                screen[a as usize],
+                                screen[b as usize],
+                                thick,
+                                bias,
+                                ecol,
+                                if dense { 0.55 } else { 0.9 },
+                                clip,
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        draw_text(
+            &mut cv,
+            &font,
+            &cell.label,
+            (cx0 + cw / 2) as f32,
+            (cy0 + label_h / 2) as f32,
+            (label_h as f32 * 0.55).min(22.0 * SS as f32),
+        );
+    }
+    if let Some(t) = &opts.title {
+        draw_text(
+            &mut cv,
+            &font,
+            t,
+            (w / 2) as f32,
+            (title_h / 2) as f32,
+            title_h as f32 * 0.5,
+        );
+    }
+    downsample(&cv, opts.width as usize, opts.height as usize)
+}
+
+fn bounding_ball(cell: &Cell) -> (Vec3, f64) {
+    let pts: Vec<Vec3> = cell
+        .objects
+        .iter()
+        .flat_map(|(m, _)| m.vertices.iter().copied())
+        .collect();
+    match crate::math::bounding_box(&pts) {
+        None => (Vec3::zeros(), 0.0),
+        Some((lo, hi)) => {
+            let c = (lo + hi) / 2.0;
+            (c, pts.iter().map(|p| (p - c).norm()).fold(0.0, f64::max))
+        }
+    }
+}
+
+fn fill_triangle(
+    cv: &mut Canvas,
+    t: [[f64; 3]; 3],
+    col: [f32; 3],
+    clip: (usize, usize, usize, usize),
+) {
+    let area =
+        (t[1][0] - t[0][0]) * (t[2][1] - t[0][1]) - (t[2][0] - t[0][0]) * (t[1][1] - t[0][1]);
+    if area.abs() < 1e-12 {
+        return;
+    }
+    let xmin = t
+        .iter()
+        .map(|p| p[0])
+        .fold(f64::INFINITY, f64::min)
+        .floor()
+        .max(clip.0 as f64) as usize;
+    let xmax = t
+        .iter()
+        .map(|p| p[0])
+        .fold(f64::NEG_INFINITY, f64::max)
+        .ceil()
+        .min(clip.2 as f64 - 1.0);
+    let ymin = t
+        .iter()
+        .map(|p| p[1])
+        .fold(f64::INFINITY, f64::min)
+        .floor()
+        .max(clip.1 as f64) as usize;
+    let ymax = t
+        .iter()
+        .map(|p| p[1])
+        .fold(f64::NEG_INFINITY, f64::max)
+        .ceil()
+        .min(clip.3 as f64 - 1.0);
+    if xmax < 0.0 || ymax < 0.0 {
+        return;
+    }
+    for y in ymin..=ymax as usize {
+        for x in xmin..=xmax as usize {
+            let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+            let e = |a: [f64; 3], b: [f64; 3]| {
+                (b[0] - a[0]) * (py - a[1]) - (b[1] - a[1]) * (px - a[0])
+            };
+            let (w0, w1, w2) = (
+                e(t[1], t[2]) / area,
+                e(t[2], t[0]) / area,
+                e(t[0], t[1]) / area,
+            );
+            if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                continue;
+            }
+            let z = (w0 * t[0][2] + w1 * t[1][2] + w2 * t[2][2]) as f32;
+            let i = y * cv.w + x;
+            if z > cv.depth[i] {
+                cv.depth[i] = z;
+                cv.color[i] = col;
+            }
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn draw_line(
+    cv: &mut Canvas,
+    a: [f64; 3],
+    b: [f64; 3],
+    thick: f64,
+    bias: f64,
+    col: [f32; 3],
+    alpha: f32,
+    clip: (usize, usize, usize, usize),
+) {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let len2 = dx * dx + dy * dy;
+    let pad = thick + 1.0;
+    let x0 = (a[0].min(b[0]) - pad).floor().max(clip.0 as f64) as usize;
+    let x1 = (a[0].max(b[0]) + pad).ceil().min(clip.2 as f64 - 1.0);
+    let y0 = (a[1].min(b[1]) - pad).floor().max(clip.1 as f64) as usize;
+    let y1 = (a[1].max(b[1]) + pad).ceil().min(clip.3 as f64 - 1.0);
+    if x1 < 0.0 || y1 < 0.0 {
+        return;
+    }
+    for y in y0..=y1 as usize {
+        for x in x0..=x1 as usize {
+            let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+            let t = if len2 > 0.0 {
+                (((px - a[0]) * dx + (py - a[1]) * dy) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let (qx, qy) = (a[0] + t * dx, a[1] + t * dy);
+            let dist = ((px - qx).powi(2) + (py - qy).powi(2)).sqrt();
+            if dist > thick / 2.0 {
+                continue;
+            }
+            let z = (a[2] + t * (b[2] - a[2])) as f32;
+            let i = y * cv.w + x;
+            if z + bias as f32 >= cv.depth[i] {
+                cv.blend(x, y, col, alpha);
+            }
+        }
+    }
+}
+
+/// Draws `text` centred at (cx, cy) in black.
+fn draw_text(cv: &mut Canvas, font: &FontRef, text: &str, cx: f32, cy: f32, px: f32) {
+    let scaled = font.as_scaled(PxScale::from(px));
+    let width: f32 = text
+        .chars()
+        .map(|c| scaled.h_advance(font.glyph_id(c)))
+        .sum();
+    let mut x = cx - width / 2.0;
+    let baseline = cy + (scaled.ascent() + scaled.descent()) / 2.0;
+    for c in text.chars() {
+        let g = font
+            .glyph_id(c)
+            .with_scale_and_position(PxScale::from(px), ab_glyph::point(x, baseline));
+        x += scaled.h_advance(font.glyph_id(c));
+        if let Some(outline) = font.outline_glyph(g) {
+            let bb = outline.px_bounds();
+            outline.draw(|gx, gy, cov| {
+                let (px, py) = (bb.min.x as i64 + gx as i64, bb.min.y as i64 + gy as i64);
+                if px >= 0 && py >= 0 && (px as usize) < cv.w && (py as usize) < cv.h {
+                    cv.blend(px as usize, py as usize, [0.1, 0.1, 0.1], cov.min(1.0));
+                }
+            });
+        }
+    }
+}
+
+fn downsample(cv: &Canvas, w: usize, h: usize) -> Image {
+    let mut rgb = Vec::with_capacity(w * h * 3);
+    for y in 0..h {
+        for x in 0..w {
+            let mut s = [0.0f32; 3];
+            for dy in 0..SS {
+                for dx in 0..SS {
+                    let p = cv.color[(y * SS + dy) * cv.w + x * SS + dx];
+                    for k in 0..3 {
+                        s[k] += p[k];
+                    }
+                }
+            }
+            for v in s {
+                rgb.push((v / (SS * SS) as f32 * 255.0).round().clamp(0.0, 255.0) as u8);
+            }
+        }
+    }
+    Image {
+        width: w as u32,
+        height: h as u32,
+        rgb,
+    }
+}
 
 /// A UV sphere of radius `r` (closed, outward), `rings` x `segments`.
 pub fn uv_sphere(r: f64, rings: usize, segments: usize) -> PolyMesh {
@@ -30,4 +453,44 @@ pub fn uv_sphere(r: f64, rings: usize, segments: usize) -> PolyMesh {
         m.push_face(&[at(rings - 1, j), south, at(rings - 1, j + 1)]);
     }
     m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mass::MassProps;
+
+    #[test]
+    fn uv_sphere_is_closed_and_outward() {
+        let s = uv_sphere(2.0, 16, 32);
+        s.topology(None).unwrap();
+        let m = MassProps::of(&s);
+        assert!(
+            m.volume > 0.0
+                && (m.volume / (4.0 / 3.0 * std::f64::consts::PI * 8.0) - 1.0).abs() < 0.05
+        );
+    }
+
+    #[test]
+    fn a_cube_is_drawn_in_its_cell_and_the_rest_stays_white() {
+        let cells = group_cells(vec![crate::mesh::cube(1.0)]);
+        let img = render(
+            &cells,
+            &Options {
+                width: 120,
+                height: 100,
+                ..Default::default()
+            },
+        );
+        let px = |x: usize, y: usize| &img.rgb[(y * 120 + x) * 3..(y * 120 + x) * 3 + 3];
+        assert_eq!(px(1, 99), [255, 255, 255]);
+        let centre = px(60, 60);
+        assert!(
+            centre != [255, 255, 255],
+            "the cube covers the middle of its cell"
+        );
+        let mut buf = Vec::new();
+        img.write_png(&mut buf).unwrap();
+        assert_eq!(&buf[1..4], b"PNG");
+    }
 }

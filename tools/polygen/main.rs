@@ -118,6 +118,7 @@ fn construction(poly: &PolyMesh, points: &[shared::math::Vec3], r: f64) -> Vec<P
     let mut sphere = shared::render::uv_sphere(r, 24, 48);
     sphere.name = format!("{cell_a}/sphere");
     sphere.attrs.set("color", "c8c8d2");
+    sphere.attrs.set("edges", "no");
     out.push(sphere);
     for (i, p) in points.iter().enumerate() {
         let n = p.normalize();
@@ -126,7 +127,7 @@ fn construction(poly: &PolyMesh, points: &[shared::math::Vec3], r: f64) -> Vec<P
         } else {
             Vec3::y()
         };
-        let u = n.cross(&helper).normalize() * (0.45 * r);
+        let u = n.cross(&helper).normalize() * (0.6 * r);
         let w = n.cross(&u);
         let c = p * 1.002;
         let mut patch = PolyMesh::from_faces(

@@ -1,0 +1,27 @@
+# Every figure from scratch: `make figures` (or `make fig1` ... `make fig7`); `make test`;
+# `make bench`. Outputs go to out/ (not tracked).
+
+OUT := out
+BIN := $(CURDIR)/target/release
+export PATH := $(BIN):$(PATH)
+SHELL := /bin/bash
+.SHELLFLAGS := -o pipefail -ec
+
+.PHONY: all figures build test bench clean fig1 fig2 fig4 fig5 fig6 fig7
+all: figures
+figures: fig1 fig2 fig4 fig5 fig6 fig7
+
+build:
+	cargo build --release --locked --bins
+
+$(OUT):
+	mkdir -p $(OUT)
+
+include pipelines/geometry.mk
+include pipelines/bench.mk
+
+test:
+	cargo test --release --locked --workspace
+
+clean:
+	rm -rf $(OUT)
