@@ -48,31 +48,33 @@ pub struct PolyMesh {
 }
 
 /// Why a mesh is not a closed, consistently oriented 2-manifold. `line` is the OBJ line of the
-/// face concerned where the caller supplied face lines.
+/// face concerned where the caller supplied face lines. `face` and `BadIndex::vertex` are 0-based;
+/// `a`, `b` and the vertex of `UnusedVertex`/`NonManifoldVertex` are 1-based; messages number
+/// everything from 1 within the object, as OBJ does.
 #[derive(Debug, Error, PartialEq)]
 pub enum MeshError {
     #[error("the mesh has no faces")]
     Empty,
-    #[error("face {face}{} has {count} distinct vertices; a face needs at least 3", at(*line))]
+    #[error("face {}{} has {count} distinct vertices; a face needs at least 3", face + 1, at(*line))]
     DegenerateFace {
         face: usize,
         line: Option<u64>,
         count: usize,
     },
-    #[error("face {face}{} uses vertex {vertex} which does not exist", at(*line))]
+    #[error("face {}{} uses vertex {} which does not exist", face + 1, at(*line), vertex + 1)]
     BadIndex {
         face: usize,
         line: Option<u64>,
         vertex: u32,
     },
-    #[error("edge {a}-{b} of face {face}{} has no neighbour: the mesh is open (boundary edge)", at(*line))]
+    #[error("edge {a}-{b} of face {}{} has no neighbour: the mesh is open (boundary edge)", face + 1, at(*line))]
     BoundaryEdge {
         face: usize,
         line: Option<u64>,
         a: u32,
         b: u32,
     },
-    #[error("edge {a}-{b} is shared by {count} faces (first: face {face}{}); a manifold edge has exactly 2", at(*line))]
+    #[error("edge {a}-{b} is shared by {count} faces (first: face {}{}); a manifold edge has exactly 2", face + 1, at(*line))]
     NonManifoldEdge {
         face: usize,
         line: Option<u64>,
@@ -80,7 +82,7 @@ pub enum MeshError {
         b: u32,
         count: usize,
     },
-    #[error("face {face}{} runs edge {a}-{b} in the same direction as face {other}{}: one of them is flipped (inconsistent orientation)", at(*line), at(*other_line))]
+    #[error("face {}{} runs edge {a}-{b} in the same direction as face {}{}: one of them is flipped (inconsistent orientation)", face + 1, at(*line), other + 1, at(*other_line))]
     FlippedFace {
         face: usize,
         line: Option<u64>,

@@ -98,3 +98,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
     out.into_inner()?.flush()?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn cli_is_well_formed() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
+    }
+}

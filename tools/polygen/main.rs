@@ -38,10 +38,10 @@ struct Cli {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Sphere radius R (the inscribed radius of every polyhedron)
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     radius: f64,
     /// Redraw polyhedra whose farthest vertex is beyond this many R ('inf': no cap)
-    #[arg(long, default_value_t = polygen::DEFAULT_MAX_ELONGATION)]
+    #[arg(long, default_value_t = polygen::DEFAULT_MAX_ELONGATION, allow_negative_numbers = true)]
     max_elongation: f64,
     /// Also emit the construction (sphere and tangent-plane patches) for pictures; these extra
     /// objects are open meshes, for `render` only
@@ -143,4 +143,13 @@ fn construction(poly: &PolyMesh, points: &[shared::math::Vec3], r: f64) -> Vec<P
     body.attrs.set("color", "e08c3c");
     out.push(body);
     out
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn cli_is_well_formed() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
+    }
 }

@@ -116,3 +116,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
     json_out.flush()?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn cli_is_well_formed() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
+    }
+}

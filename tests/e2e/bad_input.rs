@@ -1,0 +1,189 @@
+//! Broken input: every tool must say what is wrong (naming object and line where there is one),
+//! exit non-zero, and never write half an object.
+
+use super::{fixture, ok, run};
+
+/// Runs a tool on bad input; checks exit code and that stderr holds every `needles` entry.
+fn fails(tool: &str, args: &[&str], stdin: &[u8], code: i32, needles: &[&str]) -> Vec<u8> {
+    let out = run(tool, args, stdin);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "{tool} {args:?}: stderr {err}"
+    );
+    assert!(
+        err.starts_with(&format!("{tool}: ")) || code == 2,
+        "message names the tool: {err}"
+    );
+    for n in needles {
+        assert!(err.contains(n), "{tool} {args:?}: expected '{n}' in: {err}");
+    }
+    assert!(!err.contains("panicked"), "{err}");
+    out.stdout
+}
+
+/// A good cube followed by `bad` (an object text using indices that follow the cube's 8).
+fn after_a_good_cube(bad: &str) -> Vec<u8> {
+    let mut s = fixture("cube.obj");
+    s.extend_from_slice(bad.as_bytes());
+    s
+}
+
+const TET_VERTS: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n";
+
+#[test]
+fn abrade_rejects_each_kind_of_broken_mesh() {
+    let cases: &[(&str, String, &[&str])] = &[
+        ("open", format!("o open\n{TET_VERTS}f 9 11 10\nf 9 10 12\nf 9 12 11\n"), &["'open'", "line 17", "(line 2", "boundary edge"]),
+        ("flipped", format!("o flipped\n{TET_VERTS}f 9 11 10\nf 9 10 12\nf 9 12 11\nf 10 12 11\n"), &["'flipped'", "line 17", "flipped"]),
+        ("three faces on an edge", format!("o fin\n{TET_VERTS}v 1 1 1\nf 9 11 10\nf 9 10 12\nf 9 12 11\nf 10 11 12\nf 9 10 13\n"), &["'fin'", "shared by 3 faces"]),
+        ("repeated vertex", format!("o deg\n{TET_VERTS}f 9 11 10\nf 9 10 12\nf 9 12 11\nf 10 11 12 12\n"), &["'deg'", "face 4 (line 25)", "distinct vertices"]),
+        ("index out of range", format!("o far\n{TET_VERTS}f 9 11 99\n"), &["'far'", "line 22", "out of range"]),
+        ("nan", "o nan\nv 0 0 0\nv 1 nan 0\n".to_string(), &["'nan'", "line 19", "not finite"]),
+        ("garbage", "o junk\nv 0 0 0\nhello world\n".to_string(), &["'junk'", "line 19", "unknown OBJ statement"]),
+        ("two-corner face", format!("o two\n{TET_VERTS}f 9 10\n"), &["'two'", "2 corners"]),
+        ("earlier object's vertex", format!("o thief\n{TET_VERTS}f 1 10 11\n"), &["'thief'", "earlier object"]),
+    ];
+    let good = ok("abrade", &[], &fixture("cube.obj"));
+    for (what, text, needles) in cases {
+        let out = fails("abrade", &[], &after_a_good_cube(text), 1, needles);
+        // The good cube before it is written whole, nothing of the bad object.
+        assert_eq!(
+            out, good,
+            "{what}: output must be exactly the good object before the bad one"
+        );
+    }
+}
+
+#[test]
+fn empty_input_is_an_error() {
+    for tool in ["abrade", "roundness", "render"] {
+        fails(tool, &[], b"", 1, &["no objects"]);
+        fails(tool, &[], b"# only a comment\n", 1, &["no objects"]);
+    }
+}
+
+#[test]
+fn roundness_rejects_inside_out_and_open_meshes() {
+    let cube = String::from_utf8(fixture("cube.obj")).unwrap();
+    let inside_out: String = cube
+        .lines()
+        .map(|l| {
+            if let Some(f) = l.strip_prefix("f ") {
+                format!("f {}", f.split(' ').rev().collect::<Vec<_>>().join(" "))
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    fails(
+        "roundness",
+        &[],
+        inside_out.as_bytes(),
+        1,
+        &["'cube'", "inwards"],
+    );
+    fails(
+        "roundness",
+        &[],
+        format!("o open\n{TET_VERTS}f 1 3 2\nf 1 2 4\n").as_bytes(),
+        1,
+        &["'open'", "boundary edge"],
+    );
+}
+
+#[test]
+fn roundness_rejects_a_flat_object() {
+    // A closed but flat double-sided square: zero volume.
+    let flat = "o flat\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 4 3 2 1\n";
+    fails("roundness", &[], flat.as_bytes(), 1, &["'flat'"]);
+}
+
+#[test]
+fn bad_arguments_are_usage_errors() {
+    fails("polygen", &["--faces", "9..6"], b"", 2, &["empty range"]);
+    fails(
+        "polygen",
+        &["--faces", "six"],
+        b"",
+        2,
+        &["not a whole number"],
+    );
+    fails("polygen", &["--bogus"], b"", 2, &["--bogus"]);
+    fails(
+        "abrade",
+        &["--levels", "x"],
+        b"",
+        2,
+        &["not a whole number"],
+    );
+    fails("render", &["--size", "10x10"], b"", 2, &["16 to 8192"]);
+}
+
+#[test]
+fn bad_parameter_values_are_errors() {
+    fails("polygen", &["--faces", "3"], b"", 1, &["at least 4 faces"]);
+    fails("polygen", &["--radius", "-2"], b"", 1, &["radius"]);
+    fails(
+        "polygen",
+        &["--max-elongation", "0.5"],
+        b"",
+        1,
+        &["elongation cap"],
+    );
+    fails("polygen", &["--count", "0"], b"", 1, &["--count"]);
+    fails(
+        "polygen",
+        &["--faces", "4", "--max-elongation", "2.5"],
+        b"",
+        1,
+        &["raise --max-elongation"],
+    );
+    fails(
+        "abrade",
+        &["--levels", "9"],
+        &fixture("cube.obj"),
+        1,
+        &["too many"],
+    );
+}
+
+#[test]
+fn plot_rejects_bad_tables() {
+    fails(
+        "plot",
+        &["--x", "a", "--y", "nope"],
+        b"a,b\n1,2\n",
+        1,
+        &["no column 'nope'"],
+    );
+    fails(
+        "plot",
+        &["--x", "a", "--y", "b"],
+        b"a,b\n1,x\n",
+        1,
+        &["row 2", "'x'", "not a number"],
+    );
+    fails("plot", &["--x", "a", "--y", "b"], b"a,b\n", 1, &["no rows"]);
+    fails(
+        "plot",
+        &["--x", "a", "--y", "b", "--band", "wide"],
+        b"a,b\n1,2\n",
+        1,
+        &["--band"],
+    );
+}
+
+#[test]
+fn help_shows_an_example_pipe() {
+    for tool in ["polygen", "abrade", "roundness", "render", "plot"] {
+        let out = ok(tool, &["--help"], b"");
+        let text = String::from_utf8(out).unwrap();
+        assert!(
+            text.contains("Examples:") && text.contains(" | "),
+            "{tool} --help lacks an example pipe:\n{text}"
+        );
+    }
+}

@@ -1,0 +1,60 @@
+//! End-to-end tests: the real binaries, fed through pipes.
+
+mod bad_input;
+mod pipes;
+
+use std::io::Write;
+use std::process::{Command, Output, Stdio};
+
+/// Runs a tool with arguments and standard input; returns its output.
+pub fn run(tool: &str, args: &[&str], stdin: &[u8]) -> Output {
+    run_env(tool, args, stdin, &[])
+}
+
+/// Like `run`, with extra environment variables.
+pub fn run_env(tool: &str, args: &[&str], stdin: &[u8], env: &[(&str, &str)]) -> Output {
+    let exe = match tool {
+        "polygen" => env!("CARGO_BIN_EXE_polygen"),
+        "abrade" => env!("CARGO_BIN_EXE_abrade"),
+        "roundness" => env!("CARGO_BIN_EXE_roundness"),
+        "render" => env!("CARGO_BIN_EXE_render"),
+        "plot" => env!("CARGO_BIN_EXE_plot"),
+        other => panic!("no tool {other}"),
+    };
+    let mut child = Command::new(exe)
+        .args(args)
+        .envs(env.iter().copied())
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("tool starts");
+    let mut input = child.stdin.take().expect("stdin");
+    let data = stdin.to_vec();
+    let writer = std::thread::spawn(move || {
+        let _ = input.write_all(&data);
+    });
+    let out = child.wait_with_output().expect("tool finishes");
+    writer.join().expect("writer thread");
+    out
+}
+
+/// Runs and requires success; returns standard output.
+pub fn ok(tool: &str, args: &[&str], stdin: &[u8]) -> Vec<u8> {
+    let out = run(tool, args, stdin);
+    assert!(
+        out.status.success(),
+        "{tool} {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}
+
+/// Text of the fixture file `name`.
+pub fn fixture(name: &str) -> Vec<u8> {
+    std::fs::read(format!(
+        "{}/tests/fixtures/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .expect("fixture exists")
+}
