@@ -24,7 +24,7 @@ fig4: build | $(OUT)
 
 fig5: $(OUT)/templates.obj
 	abrade --levels 1..3 < $< | roundness > $(OUT)/fig5.csv
-	abrade --levels 1..3 < $< | render --cols 9 --size 1500x640 --azimuth 35 \
+	abrade --levels 1..3 < $< | render --cols 9 --size 1400x600 --azimuth 35 \
 	  --title "Fig. 5: the templates after 1, 2, 3 abrasions (rows: Ab_1, Ab_2, Ab_3)" > $(OUT)/fig5.png
 
 fig6: $(OUT)/templates.obj

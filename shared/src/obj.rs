@@ -59,6 +59,9 @@ pub struct ObjReader<R> {
     /// Vertices seen in earlier objects (the global index base of the current object).
     base: u64,
     current: Option<ObjObject>,
+    /// Comments met after the current object's faces began: they belong to the object if more
+    /// of it follows, to the stream if the object ends.
+    trailing: Vec<String>,
     /// Items ready to hand out (a comment seen before any object, or a finished object).
     ready: std::collections::VecDeque<Item>,
     done: bool,
@@ -72,6 +75,7 @@ impl<R: BufRead> ObjReader<R> {
             buf: String::new(),
             base: 0,
             current: None,
+            trailing: Vec::new(),
             ready: Default::default(),
             done: false,
         }
@@ -94,6 +98,8 @@ impl<R: BufRead> ObjReader<R> {
             self.base += obj.mesh.vertices.len() as u64;
             self.ready.push_back(Item::Object(obj));
         }
+        self.ready
+            .extend(self.trailing.drain(..).map(Item::Comment));
     }
 
     fn current_or_implicit(&mut self) -> &mut ObjObject {
@@ -137,7 +143,11 @@ impl<R: BufRead> ObjReader<R> {
                     }
                 }
             } else if let Some(obj) = self.current.as_mut() {
-                obj.comments.push(rest.to_string());
+                if obj.mesh.face_verts.is_empty() {
+                    obj.comments.push(rest.to_string());
+                } else {
+                    self.trailing.push(rest.to_string());
+                }
             } else {
                 self.ready.push_back(Item::Comment(rest.to_string()));
             }
@@ -145,6 +155,11 @@ impl<R: BufRead> ObjReader<R> {
         }
         let mut tokens = text.split_ascii_whitespace();
         let tag = tokens.next().unwrap_or("");
+        if tag != "o" && !self.trailing.is_empty() {
+            if let Some(obj) = self.current.as_mut() {
+                obj.comments.append(&mut self.trailing);
+            }
+        }
         match tag {
             "v" => {
                 let mut xyz = [0.0f64; 3];
@@ -377,6 +392,30 @@ mod tests {
         assert!(matches!(&items[0], Item::Comment(c) if c == " made by hand"));
         assert!(
             matches!(&items[1], Item::Object(o) if o.mesh.name == "object" && o.face_lines == [5])
+        );
+    }
+
+    #[test]
+    fn a_comment_after_the_last_face_belongs_to_the_stream() {
+        let text = "o a\n# inside a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n# between\no b\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 4 5 6\n# mid b\nf 6 5 4\n# at the end\n";
+        let items: Vec<Item> = ObjReader::new(text.as_bytes())
+            .map(|i| i.unwrap())
+            .collect();
+        let kinds: Vec<String> = items
+            .iter()
+            .map(|i| match i {
+                Item::Comment(c) => format!("#{c}"),
+                Item::Object(o) => format!("o {} {:?}", o.mesh.name, o.comments),
+            })
+            .collect();
+        assert_eq!(
+            kinds,
+            [
+                "o a [\" inside a\"]",
+                "# between",
+                "o b [\" mid b\"]",
+                "# at the end"
+            ]
         );
     }
 

@@ -128,21 +128,15 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
             .map_err(|e| e.to_string())?;
             let dashed = s.dashed;
             drawn.label(&s.label).legend(move |(x, y)| {
-                let segs: Vec<(i32, i32)> = if dashed {
-                    vec![(x, y), (x + 7, y)]
+                // Coordinates after EmptyElement::at are relative to (x, y).
+                let (a, b) = if dashed {
+                    ((0, 7), (11, 18))
                 } else {
-                    vec![(x, y), (x + 18, y)]
+                    ((0, 9), (9, 18))
                 };
                 EmptyElement::at((x, y))
-                    + PathElement::new(segs, c.stroke_width(2))
-                    + PathElement::new(
-                        if dashed {
-                            vec![(x + 11, y), (x + 18, y)]
-                        } else {
-                            vec![]
-                        },
-                        c.stroke_width(2),
-                    )
+                    + PathElement::new(vec![(a.0, 0), (a.1, 0)], c.stroke_width(2))
+                    + PathElement::new(vec![(b.0, 0), (b.1, 0)], c.stroke_width(2))
             });
             ctx.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))
                 .map_err(|e| e.to_string())?;
