@@ -66,21 +66,36 @@ struct Tri {
     alive: bool,
     normal: Vec3,
     offset: f64,
+    /// Bound on the error of `dist`: beyond it the float sign is the exact sign.
+    tol: f64,
     outside: Vec<u32>,
 }
 
+/// A safety factor over the first-order error analysis of `Tri::dist` (see `Tri::new`).
+const FILTER_SAFETY: f64 = 64.0;
+
 impl Tri {
-    fn new(v: [u32; 3], pts: &[Vec3]) -> Tri {
+    /// `m` bounds the magnitude of every coordinate difference and position in the input.
+    fn new(v: [u32; 3], pts: &[Vec3], m: f64) -> Tri {
         let (a, b, c) = (pts[v[0] as usize], pts[v[1] as usize], pts[v[2] as usize]);
         let n = (b - a).cross(&(c - a));
         let len = n.norm();
         let normal = if len > 0.0 { n / len } else { n };
+        // Float error: the cross product is off by about eps m^2 per component, so the unit
+        // normal by eps m^2 / |n|, and the height of a point (|p - a| <= m) by that times m,
+        // plus eps m for the dot products. Inside this band the exact predicate decides.
+        let tol = if len > 0.0 {
+            FILTER_SAFETY * f64::EPSILON * (m * m * m / len + m)
+        } else {
+            f64::INFINITY
+        };
         Tri {
             v,
             n: [u32::MAX; 3],
             alive: true,
             normal,
             offset: normal.dot(&a),
+            tol,
             outside: Vec::new(),
         }
     }
@@ -89,14 +104,24 @@ impl Tri {
         self.normal.dot(p) - self.offset
     }
 
+    /// Exact: is `p` strictly above this facet's plane? A float filter decides when it can.
     fn above(&self, pts: &[Vec3], p: &Vec3) -> bool {
-        side(
-            &pts[self.v[0] as usize],
-            &pts[self.v[1] as usize],
-            &pts[self.v[2] as usize],
-            p,
-        ) > 0.0
+        let d = self.dist(p);
+        if d > self.tol {
+            return true;
+        }
+        if d < -self.tol {
+            return false;
+        }
+        let v = |k: usize| &pts[self.v[k] as usize];
+        side(v(0), v(1), v(2), p) > 0.0
     }
+}
+
+/// A bound on coordinate magnitudes and differences of the input (for the float filter).
+fn magnitude(pts: &[Vec3]) -> f64 {
+    let max_abs = pts.iter().map(|p| p.amax()).fold(0.0, f64::max);
+    2.0 * max_abs * 3f64.sqrt()
 }
 
 /// The convex hull of `points`.
@@ -113,8 +138,9 @@ fn triangulated_hull(pts: &[Vec3]) -> Result<Vec<Tri>, HullError> {
     if let Some(i) = pts.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
         return Err(HullError::NonFinite(i));
     }
-    let mut tris = initial_simplex(pts)?;
-    // Assign every point to the facet it is farthest outside of.
+    let m = magnitude(pts);
+    let mut tris = initial_simplex(pts, m)?;
+    // Give every point to a facet it is outside of.
     let all: Vec<u32> = (0..pts.len() as u32).collect();
     assign(pts, &mut tris, &all, 0);
 
@@ -177,7 +203,7 @@ fn triangulated_hull(pts: &[Vec3]) -> Result<Vec<Tri>, HullError> {
         let first_new = tris.len() as u32;
         for (k, &(a, b, nb)) in horizon.iter().enumerate() {
             let id = first_new + k as u32;
-            let mut t = Tri::new([a, b, eye], pts);
+            let mut t = Tri::new([a, b, eye], pts, m);
             t.n[0] = nb;
             let nbt = &mut tris[nb as usize];
             let j = (0..3)
@@ -212,29 +238,20 @@ fn triangulated_hull(pts: &[Vec3]) -> Result<Vec<Tri>, HullError> {
     Ok(tris)
 }
 
-/// Gives each point to the alive facet among `tris[from..]` it is farthest outside of (exact
-/// test); points outside none are inside the hull and dropped.
+/// Gives each point to the first alive facet among `tris[from..]` it is strictly outside of
+/// (exact test behind a float filter); points outside none are inside the hull and dropped.
+/// Which visible facet gets a point does not change the hull, only the order of work.
 fn assign(pts: &[Vec3], tris: &mut [Tri], points: &[u32], from: usize) {
     for &i in points {
         let p = &pts[i as usize];
-        let mut best: Option<(usize, f64)> = None;
-        for (t, tri) in tris.iter().enumerate().skip(from) {
-            if !tri.alive || !tri.above(pts, p) {
-                continue;
-            }
-            let d = tri.dist(p);
-            if best.is_none_or(|(_, bd)| d > bd) {
-                best = Some((t, d));
-            }
-        }
-        if let Some((t, _)) = best {
+        if let Some(t) = (from..tris.len()).find(|&t| tris[t].alive && tris[t].above(pts, p)) {
             tris[t].outside.push(i);
         }
     }
 }
 
 /// A tetrahedron of four points in general position, its facets outward, linked.
-fn initial_simplex(pts: &[Vec3]) -> Result<Vec<Tri>, HullError> {
+fn initial_simplex(pts: &[Vec3], m: f64) -> Result<Vec<Tri>, HullError> {
     // Two extreme points along the axis of largest spread.
     let (mut lo, mut hi) = ([0usize; 3], [0usize; 3]);
     for (i, p) in pts.iter().enumerate() {
@@ -291,7 +308,7 @@ fn initial_simplex(pts: &[Vec3]) -> Result<Vec<Tri>, HullError> {
         (i0, i1, i2)
     };
     let faces = [[b0, b1, b2], [b0, i3, b1], [b1, i3, b2], [b2, i3, b0]];
-    let mut tris: Vec<Tri> = faces.iter().map(|&v| Tri::new(v, pts)).collect();
+    let mut tris: Vec<Tri> = faces.iter().map(|&v| Tri::new(v, pts, m)).collect();
     link_by_edges(&mut tris);
     Ok(tris)
 }
@@ -573,6 +590,30 @@ mod tests {
         let h = convex_hull(&pts).unwrap();
         assert_eq!(h.mesh.vertices.len(), 2000);
         check_hull(&pts, &h);
+    }
+
+    #[test]
+    fn abraded_meshes_with_thousands_of_vertices() {
+        use crate::{mass::MassProps, polygen, subdiv};
+        for (k, levels) in [(6, 4), (14, 3), (9, 4)] {
+            let p = polygen::generate(
+                &polygen::Params {
+                    faces: k,
+                    ..Default::default()
+                },
+                5,
+                0,
+            )
+            .unwrap();
+            let m = subdiv::subdivide(&p.mesh, &p.mesh.topology(None).unwrap(), levels);
+            assert!(m.vertices.len() > 1000);
+            let h = convex_hull(&m.vertices).unwrap();
+            check_hull(&m.vertices, &h);
+            // The hull holds the mesh: at least its volume, and it uses most of its vertices.
+            let (vm, vh) = (MassProps::of(&m).volume, MassProps::of(&h.mesh).volume);
+            assert!(vh >= vm * (1.0 - 1e-12), "hull {vh} < mesh {vm}");
+            assert!(h.mesh.vertices.len() * 2 > m.vertices.len());
+        }
     }
 
     #[test]

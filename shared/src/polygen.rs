@@ -159,13 +159,51 @@ pub fn from_tangent_points(points: &[Vec3], radius: f64) -> Result<(PolyMesh, f6
         }
     }
     let r2 = radius * radius;
+    // The output depends on the geometry only, not on the hull's internal order: hull vertex i
+    // is tangent point i (all are corners, in input order); a dual vertex is numbered by the
+    // sorted list of tangent points whose planes meet there, and computed from its hull facet
+    // read from its smallest point; each face starts at its smallest vertex.
+    let nf = hull.mesh.face_count();
+    let cycles: Vec<Vec<u32>> = (0..nf)
+        .map(|f| {
+            let c = hull.mesh.face(f);
+            let start = (0..c.len()).min_by_key(|&k| c[k]).unwrap_or(0);
+            c[start..].iter().chain(&c[..start]).copied().collect()
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..nf).collect();
+    let keys: Vec<Vec<u32>> = cycles
+        .iter()
+        .map(|c| {
+            let mut k = c.clone();
+            k.sort_unstable();
+            k
+        })
+        .collect();
+    order.sort_by(|&a, &b| keys[a].cmp(&keys[b]));
+    let mut new_id = vec![0u32; nf];
+    for (rank, &f) in order.iter().enumerate() {
+        new_id[f] = rank as u32;
+    }
     let mut mesh = PolyMesh::named("polyhedron");
-    mesh.vertices = hull.planes.iter().map(|(n, d)| n * (r2 / d)).collect();
-    // Hull vertex i is input point i (all points are corners, numbered in input order).
+    mesh.vertices = order
+        .iter()
+        .map(|&f| {
+            let (n, d) =
+                hull::polygon_plane(cycles[f].iter().map(|&i| hull.mesh.vertices[i as usize]));
+            n * (r2 / d)
+        })
+        .collect();
     let mut ring = Vec::new();
     for v in 0..points.len() {
         ring.clear();
-        ring.extend(hull.mesh.ring(&topo, v).map(|h| topo.face_of[h]));
+        ring.extend(
+            hull.mesh
+                .ring(&topo, v)
+                .map(|h| new_id[topo.face_of[h] as usize]),
+        );
+        let start = (0..ring.len()).min_by_key(|&k| ring[k]).unwrap_or(0);
+        ring.rotate_left(start);
         mesh.push_face(&ring);
     }
     if let Some(f) = (0..mesh.face_count())
