@@ -12,12 +12,26 @@ use std::hint::black_box;
 fn polyhedra(per_k: u64) -> Vec<PolyMesh> {
     (6..=14)
         .flat_map(|k| (0..per_k).map(move |i| (k, i)))
-        .map(|(k, i)| polygen::generate(&polygen::Params { faces: k, ..Default::default() }, 1, i).unwrap().mesh)
+        .map(|(k, i)| {
+            polygen::generate(
+                &polygen::Params {
+                    faces: k,
+                    ..Default::default()
+                },
+                1,
+                i,
+            )
+            .unwrap()
+            .mesh
+        })
         .collect()
 }
 
 fn abrade_all(meshes: &[PolyMesh]) -> Vec<PolyMesh> {
-    meshes.iter().map(|m| subdiv::catmull_clark(m, &m.topology(None).unwrap())).collect()
+    meshes
+        .iter()
+        .map(|m| subdiv::catmull_clark(m, &m.topology(None).unwrap()))
+        .collect()
 }
 
 fn bench(c: &mut Criterion) {
@@ -29,20 +43,25 @@ fn bench(c: &mut Criterion) {
     let mut level = polyhedra(2);
     for l in 1..=3 {
         let input = level.clone();
-        g.bench_function(format!("abrade level {l} objects"), |b| b.iter(|| black_box(abrade_all(&input))));
+        g.bench_function(format!("abrade level {l} objects"), |b| {
+            b.iter(|| black_box(abrade_all(&input)))
+        });
         level = abrade_all(&input);
     }
     let ab3 = level;
-    g.bench_function("roundness Ab3 objects (validate, mass, hull, hull mass)", |b| {
-        b.iter(|| {
-            for m in &ab3 {
-                m.topology(None).unwrap();
-                black_box(MassProps::of(m));
-                let h = hull::convex_hull(&m.vertices).unwrap();
-                black_box(MassProps::of(&h.mesh));
-            }
-        })
-    });
+    g.bench_function(
+        "roundness Ab3 objects (validate, mass, hull, hull mass)",
+        |b| {
+            b.iter(|| {
+                for m in &ab3 {
+                    m.topology(None).unwrap();
+                    black_box(MassProps::of(m));
+                    let h = hull::convex_hull(&m.vertices).unwrap();
+                    black_box(MassProps::of(&h.mesh));
+                }
+            })
+        },
+    );
     g.bench_function("hull only Ab3 objects", |b| {
         b.iter(|| {
             for m in &ab3 {
@@ -52,8 +71,12 @@ fn bench(c: &mut Criterion) {
     });
     let text = obj::to_string(&ab3);
     g.throughput(Throughput::Bytes(text.len() as u64));
-    g.bench_function("OBJ write Ab3 bytes", |b| b.iter(|| black_box(obj::to_string(&ab3))));
-    g.bench_function("OBJ parse Ab3 bytes", |b| b.iter(|| black_box(obj::read_all(text.as_bytes()).unwrap())));
+    g.bench_function("OBJ write Ab3 bytes", |b| {
+        b.iter(|| black_box(obj::to_string(&ab3)))
+    });
+    g.bench_function("OBJ parse Ab3 bytes", |b| {
+        b.iter(|| black_box(obj::read_all(text.as_bytes()).unwrap()))
+    });
     g.finish();
 }
 

@@ -38,9 +38,9 @@ pub fn stdout() -> BufWriter<io::StdoutLock<'static>> {
     BufWriter::with_capacity(1 << 16, io::stdout().lock())
 }
 
-/// Buffered standard input.
-pub fn stdin() -> io::BufReader<io::StdinLock<'static>> {
-    io::BufReader::with_capacity(1 << 16, io::stdin().lock())
+/// Buffered standard input (movable to another thread, so reading can overlap work).
+pub fn stdin() -> io::BufReader<io::Stdin> {
+    io::BufReader::with_capacity(1 << 16, io::stdin())
 }
 
 /// The provenance comment a tool adds to a stream: ` tool version args...` (no leading `#`).
@@ -100,7 +100,7 @@ pub enum Emit<T> {
 /// handing comments and results to `emit` in input order. Stops at the first error in input
 /// order, after emitting everything before it (so no object is half-written). Returns the number
 /// of objects; memory holds one batch.
-pub fn for_each_object<R: BufRead, T: Send>(
+pub fn for_each_object<R: BufRead + Send, T: Send>(
     tool: &'static str,
     input: R,
     batch: usize,
@@ -110,31 +110,33 @@ pub fn for_each_object<R: BufRead, T: Send>(
     let mut reader = ObjReader::new(input);
     let mut progress = Progress::new(tool);
     let mut count = 0u64;
+    // Reading the next batch overlaps with the work on this one.
+    let mut current = read_batch(&mut reader, batch);
     loop {
-        let mut items = Vec::new();
-        let mut objects = 0;
-        let mut read_error = None;
-        while objects < batch {
-            match reader.next() {
-                None => break,
-                Some(Err(e)) => {
-                    read_error = Some(e);
-                    break;
-                }
-                Some(Ok(item)) => {
-                    objects += matches!(item, Item::Object(_)) as usize;
-                    items.push(item);
-                }
-            }
+        let (items, read_error) = current;
+        if items.is_empty() && read_error.is_none() {
+            progress.finish();
+            return Ok(count);
         }
-        let end = items.is_empty() && read_error.is_none();
-        let results: Vec<anyhow::Result<Emit<T>>> = items
-            .into_par_iter()
-            .map(|item| match item {
-                Item::Comment(c) => Ok(Emit::Comment(c)),
-                Item::Object(o) => work(o).map(Emit::Done),
-            })
-            .collect();
+        let more = read_error.is_none();
+        let (results, next) = rayon::join(
+            || {
+                items
+                    .into_par_iter()
+                    .map(|item| match item {
+                        Item::Comment(c) => Ok(Emit::Comment(c)),
+                        Item::Object(o) => work(o).map(Emit::Done),
+                    })
+                    .collect::<Vec<anyhow::Result<Emit<T>>>>()
+            },
+            || {
+                if more {
+                    read_batch(&mut reader, batch)
+                } else {
+                    (Vec::new(), None)
+                }
+            },
+        );
         for r in results {
             let e = r?;
             count += matches!(e, Emit::Done(_)) as u64;
@@ -144,11 +146,29 @@ pub fn for_each_object<R: BufRead, T: Send>(
         if let Some(e) = read_error {
             return Err(e.into());
         }
-        if end {
-            progress.finish();
-            return Ok(count);
+        current = next;
+    }
+}
+
+/// Up to `batch` objects (with the comments among them), and the read error that ended the
+/// batch early, if any.
+fn read_batch<R: BufRead>(
+    reader: &mut ObjReader<R>,
+    batch: usize,
+) -> (Vec<Item>, Option<crate::obj::ObjError>) {
+    let mut items = Vec::new();
+    let mut objects = 0;
+    while objects < batch {
+        match reader.next() {
+            None => break,
+            Some(Err(e)) => return (items, Some(e)),
+            Some(Ok(item)) => {
+                objects += matches!(item, Item::Object(_)) as usize;
+                items.push(item);
+            }
         }
     }
+    (items, None)
 }
 
 /// Parses `N` or `A..B` (inclusive) into a range of integers.

@@ -69,6 +69,9 @@ struct Tri {
     /// Bound on the error of `dist`: beyond it the float sign is the exact sign.
     tol: f64,
     outside: Vec<u32>,
+    /// The farthest outside point and its height (valid when `outside` is not empty).
+    far: u32,
+    far_d: f64,
 }
 
 /// A safety factor over the first-order error analysis of `Tri::dist` (see `Tri::new`).
@@ -97,6 +100,8 @@ impl Tri {
             offset: normal.dot(&a),
             tol,
             outside: Vec::new(),
+            far: u32::MAX,
+            far_d: f64::NEG_INFINITY,
         }
     }
 
@@ -157,17 +162,7 @@ fn triangulated_hull(pts: &[Vec3]) -> Result<Vec<Tri>, HullError> {
             continue;
         }
         // Eye point: the farthest outside point of this facet.
-        let eye = *tris[cursor]
-            .outside
-            .iter()
-            .max_by(|&&a, &&b| {
-                let (da, db) = (
-                    tris[cursor].dist(&pts[a as usize]),
-                    tris[cursor].dist(&pts[b as usize]),
-                );
-                da.total_cmp(&db).then(b.cmp(&a))
-            })
-            .expect("non-empty");
+        let eye = tris[cursor].far;
         let p = pts[eye as usize];
         // Visible facets: flood fill from this one across exact "above" tests.
         epoch += 1;
@@ -245,7 +240,14 @@ fn assign(pts: &[Vec3], tris: &mut [Tri], points: &[u32], from: usize) {
     for &i in points {
         let p = &pts[i as usize];
         if let Some(t) = (from..tris.len()).find(|&t| tris[t].alive && tris[t].above(pts, p)) {
-            tris[t].outside.push(i);
+            let tri = &mut tris[t];
+            let d = tri.dist(p);
+            // Ties go to the lower index, so the choice does not depend on the order of points.
+            if tri.outside.is_empty() || d > tri.far_d || (d == tri.far_d && i < tri.far) {
+                tri.far = i;
+                tri.far_d = d;
+            }
+            tri.outside.push(i);
         }
     }
 }
@@ -475,12 +477,19 @@ fn drop_valence_two(polygons: &mut [Vec<u32>], npts: usize) {
 
 /// Unit normal (Newell's method) and offset of a polygon's best plane.
 pub fn polygon_plane(points: impl Iterator<Item = Vec3> + Clone) -> (Vec3, f64) {
-    let pts: Vec<Vec3> = points.collect();
-    let centre = pts.iter().sum::<Vec3>() / pts.len() as f64;
+    let (sum, count) = points
+        .clone()
+        .fold((Vec3::zeros(), 0usize), |(s, c), p| (s + p, c + 1));
+    let centre = sum / count as f64;
     let mut n = Vec3::zeros();
-    for i in 0..pts.len() {
-        let (a, b) = (pts[i] - centre, pts[(i + 1) % pts.len()] - centre);
-        n += a.cross(&b);
+    let mut it = points.map(|p| p - centre);
+    if let Some(first) = it.next() {
+        let mut prev = first;
+        for cur in it {
+            n += prev.cross(&cur);
+            prev = cur;
+        }
+        n += prev.cross(&first);
     }
     let n = n.normalize();
     (n, n.dot(&centre))

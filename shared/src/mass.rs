@@ -35,8 +35,13 @@ impl MassProps {
         let mut second = Mat3::zeros(); // sum of integral x x^T dV, relative to o
         for f in 0..mesh.face_count() {
             let idx = mesh.face(f);
-            let c = mesh.face_centroid(f) - o;
-            for i in 0..idx.len() {
+            // A triangle is its own fan: one triangle instead of three about its centroid.
+            let (c, corners) = if idx.len() == 3 {
+                (mesh.vertices[idx[0] as usize] - o, 1..2)
+            } else {
+                (mesh.face_centroid(f) - o, 0..idx.len())
+            };
+            for i in corners {
                 let a = mesh.vertices[idx[i] as usize] - o;
                 let b = mesh.vertices[idx[(i + 1) % idx.len()] as usize] - o;
                 let cr = (a - c).cross(&(b - c));
