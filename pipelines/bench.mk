@@ -1,4 +1,6 @@
-# Throughput benchmarks: kernels in process (criterion) and the tools through the pipe.
+# Throughput benchmarks: kernels in process (criterion; one thread) and the tools through the
+# pipe (pipelines/bench.sh), side by side in one run. Results: docs/bench.md.
 bench: build
-	cargo bench --locked -p granular-shared --bench geometry -- --noplot 2>&1 | grep -E 'geometry/|thrpt'
+	cargo bench --locked -p granular-shared --bench geometry -- --noplot 2>&1 \
+	  | awk '/^geometry\// {name=$$0} /thrpt:/ && name {print name " " $$0; name=""}'
 	pipelines/bench.sh
