@@ -246,6 +246,20 @@ mod tests {
     }
 
     #[test]
+    fn fine_sphere_meshes_tend_to_one() {
+        let mut last = 0.0;
+        for n in [4, 8, 16, 32, 64, 128] {
+            let s = MassProps::of(&crate::render::uv_sphere(1.0, n, 2 * n)).s3d();
+            assert!(
+                s > last && s < 1.0,
+                "S3D rises towards 1 with resolution: {last} -> {s}"
+            );
+            last = s;
+        }
+        assert!(last > 0.9995, "{last}");
+    }
+
+    #[test]
     fn inside_out_has_negative_volume() {
         let mut c = cube(1.0);
         for f in 0..6 {
