@@ -38,6 +38,26 @@ pub fn stdout() -> BufWriter<io::StdoutLock<'static>> {
     BufWriter::with_capacity(1 << 16, io::stdout().lock())
 }
 
+/// Writes a picture as PNG to standard output.
+pub fn write_png_stdout(img: &crate::render::Image) -> anyhow::Result<()> {
+    use anyhow::Context;
+    use std::io::Write;
+    let mut png = Vec::new();
+    img.write_png(&mut png).context("encoding the PNG")?;
+    let mut out = stdout();
+    out.write_all(&png)?;
+    out.flush()?;
+    Ok(())
+}
+
+/// The error for an input stream without objects.
+pub fn require_objects(n: u64) -> anyhow::Result<()> {
+    if n == 0 {
+        anyhow::bail!("the input holds no objects (expected an OBJ stream on standard input)");
+    }
+    Ok(())
+}
+
 /// Buffered standard input (movable to another thread, so reading can overlap work).
 pub fn stdin() -> io::BufReader<io::Stdin> {
     io::BufReader::with_capacity(1 << 16, io::stdin())

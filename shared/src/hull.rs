@@ -208,14 +208,12 @@ fn triangulated_hull(pts: &[Vec3]) -> Result<Vec<Tri>, HullError> {
             new_at[a as usize] = id;
             tris.push(t);
         }
-        for k in 0..horizon.len() {
-            let id = (first_new as usize) + k;
-            let (a, b, _) = horizon[k];
-            // Across b -> eye: the new facet that starts at b. Across eye -> a: the one ending at a.
+        for (k, &(_, b, _)) in horizon.iter().enumerate() {
+            let id = first_new as usize + k;
+            // Across b -> eye: the new facet that starts at b (and this one is across its eye -> b).
             let next = new_at[b as usize];
             tris[id].n[1] = next;
             tris[next as usize].n[2] = id as u32;
-            let _ = a;
         }
         // Hand the orphaned outside points to the new facets; the dead facets let go of theirs.
         let mut orphans = Vec::new();

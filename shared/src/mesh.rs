@@ -302,13 +302,13 @@ impl PolyMesh {
             face_of,
             vert_out,
         };
-        for v in 0..nv {
-            if degree[v] == 0 {
+        for (v, &deg) in degree.iter().enumerate() {
+            if deg == 0 {
                 return Err(MeshError::UnusedVertex {
                     vertex: v as u32 + 1,
                 });
             }
-            if self.ring(&topo, v).count() != degree[v] as usize {
+            if self.ring(&topo, v).count() != deg as usize {
                 return Err(MeshError::NonManifoldVertex {
                     vertex: v as u32 + 1,
                 });

@@ -281,35 +281,14 @@ fn fill_triangle(
     if area.abs() < 1e-12 {
         return;
     }
-    let xmin = t
-        .iter()
-        .map(|p| p[0])
-        .fold(f64::INFINITY, f64::min)
-        .floor()
-        .max(clip.0 as f64) as usize;
-    let xmax = t
-        .iter()
-        .map(|p| p[0])
-        .fold(f64::NEG_INFINITY, f64::max)
-        .ceil()
-        .min(clip.2 as f64 - 1.0);
-    let ymin = t
-        .iter()
-        .map(|p| p[1])
-        .fold(f64::INFINITY, f64::min)
-        .floor()
-        .max(clip.1 as f64) as usize;
-    let ymax = t
-        .iter()
-        .map(|p| p[1])
-        .fold(f64::NEG_INFINITY, f64::max)
-        .ceil()
-        .min(clip.3 as f64 - 1.0);
-    if xmax < 0.0 || ymax < 0.0 {
+    let (Some((xmin, xmax)), Some((ymin, ymax))) = (
+        pixel_span(t.iter().map(|p| p[0]), clip.0, clip.2),
+        pixel_span(t.iter().map(|p| p[1]), clip.1, clip.3),
+    ) else {
         return;
-    }
-    for y in ymin..=ymax as usize {
-        for x in xmin..=xmax as usize {
+    };
+    for y in ymin..=ymax {
+        for x in xmin..=xmax {
             let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
             let e = |a: [f64; 3], b: [f64; 3]| {
                 (b[0] - a[0]) * (py - a[1]) - (b[1] - a[1]) * (px - a[0])
@@ -332,6 +311,25 @@ fn fill_triangle(
     }
 }
 
+/// The pixels `lo..=hi` (clipped to `[min, max)`) that coordinates `values` cover; `None` when
+/// they fall outside.
+fn pixel_span(
+    values: impl Iterator<Item = f64> + Clone,
+    min: usize,
+    max: usize,
+) -> Option<(usize, usize)> {
+    let lo = values
+        .clone()
+        .fold(f64::INFINITY, f64::min)
+        .floor()
+        .max(min as f64);
+    let hi = values
+        .fold(f64::NEG_INFINITY, f64::max)
+        .ceil()
+        .min(max as f64 - 1.0);
+    (hi >= lo && hi >= 0.0).then_some((lo as usize, hi as usize))
+}
+
 #[allow(clippy::too_many_arguments)]
 fn draw_line(
     cv: &mut Canvas,
@@ -346,15 +344,22 @@ fn draw_line(
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let len2 = dx * dx + dy * dy;
     let pad = thick + 1.0;
-    let x0 = (a[0].min(b[0]) - pad).floor().max(clip.0 as f64) as usize;
-    let x1 = (a[0].max(b[0]) + pad).ceil().min(clip.2 as f64 - 1.0);
-    let y0 = (a[1].min(b[1]) - pad).floor().max(clip.1 as f64) as usize;
-    let y1 = (a[1].max(b[1]) + pad).ceil().min(clip.3 as f64 - 1.0);
-    if x1 < 0.0 || y1 < 0.0 {
+    let (Some((x0, x1)), Some((y0, y1))) = (
+        pixel_span(
+            [a[0] - pad, b[0] - pad, a[0] + pad, b[0] + pad].into_iter(),
+            clip.0,
+            clip.2,
+        ),
+        pixel_span(
+            [a[1] - pad, b[1] - pad, a[1] + pad, b[1] + pad].into_iter(),
+            clip.1,
+            clip.3,
+        ),
+    ) else {
         return;
-    }
-    for y in y0..=y1 as usize {
-        for x in x0..=x1 as usize {
+    };
+    for y in y0..=y1 {
+        for x in x0..=x1 {
             let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
             let t = if len2 > 0.0 {
                 (((px - a[0]) * dx + (py - a[1]) * dy) / len2).clamp(0.0, 1.0)

@@ -92,9 +92,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
             Ok(())
         },
     )?;
-    if n == 0 {
-        bail!("the input holds no objects (expected an OBJ stream on standard input)");
-    }
+    cli::require_objects(n)?;
     out.into_inner()?.flush()?;
     Ok(())
 }

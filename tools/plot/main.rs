@@ -4,7 +4,6 @@ use anyhow::{bail, Context};
 use clap::Parser;
 use shared::cli;
 use shared::plot::{self, Chart, Series};
-use std::io::Write;
 use std::process::ExitCode;
 
 const EXAMPLES: &str = "\
@@ -250,12 +249,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         series,
     };
     let img = plot::draw(&chart, w, h).map_err(|e| anyhow::anyhow!("drawing the chart: {e}"))?;
-    let mut png = Vec::new();
-    img.write_png(&mut png).context("encoding the PNG")?;
-    let mut out = cli::stdout();
-    out.write_all(&png)?;
-    out.flush()?;
-    Ok(())
+    cli::write_png_stdout(&img)
 }
 
 #[cfg(test)]

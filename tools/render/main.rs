@@ -1,11 +1,9 @@
 //! render: an OBJ stream to a shaded PNG picture, objects in a grid of labelled cells.
 
-use anyhow::{bail, Context};
 use clap::Parser;
 use shared::cli;
 use shared::obj;
 use shared::render::{self, Options};
-use std::io::Write;
 use std::process::ExitCode;
 
 const EXAMPLES: &str = "\
@@ -64,9 +62,7 @@ fn main() -> ExitCode {
 
 fn run(args: Cli) -> anyhow::Result<()> {
     let objects = obj::read_all(cli::stdin())?;
-    if objects.is_empty() {
-        bail!("the input holds no objects (expected an OBJ stream on standard input)");
-    }
+    cli::require_objects(objects.len() as u64)?;
     let meshes = objects.into_iter().map(|o| o.mesh).collect();
     let cells = render::group_cells(meshes);
     let opts = Options {
@@ -80,12 +76,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         title: args.title,
     };
     let img = render::render(&cells, &opts);
-    let mut png = Vec::new();
-    img.write_png(&mut png).context("encoding the PNG")?;
-    let mut out = cli::stdout();
-    out.write_all(&png)?;
-    out.flush()?;
-    Ok(())
+    cli::write_png_stdout(&img)
 }
 
 #[cfg(test)]

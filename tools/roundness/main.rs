@@ -109,9 +109,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         }
         Ok(())
     })?;
-    if n == 0 {
-        bail!("the input holds no objects (expected an OBJ stream on standard input)");
-    }
+    cli::require_objects(n)?;
     csv_out.flush()?;
     json_out.flush()?;
     Ok(())
