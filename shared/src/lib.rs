@@ -26,8 +26,10 @@
 //! - [`render`]: OBJ meshes to shaded PNG pictures.
 //! - [`plot`]: line charts from tables.
 //! - [`cli`]: what every tool shares: exit codes, broken pipes, stream helpers.
+//! - [`dem`]: the discrete element engine for rigid convex polyhedra.
 
 pub mod cli;
+pub mod dem;
 pub mod hull;
 pub mod mass;
 pub mod math;

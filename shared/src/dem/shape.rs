@@ -1,0 +1,208 @@
+//! Rigid convex shapes for the DEM: the convex hull of a mesh, in its principal frame.
+//!
+//! A [`Shape`] is a template at unit scale and unit density: vertices and outward face planes
+//! in the principal frame (origin at the centroid, axes along the principal axes of inertia,
+//! moments ascending), volume, principal moments, bounding radius, and where that frame sits in
+//! the source mesh's frame. A body scales it uniformly: lengths by `s`, volume by `s^3`, moments
+//! per unit density by `s^5`.
+
+use crate::hull::{self, HullError};
+use crate::mass::MassProps;
+use crate::math::{Mat3, Vec3};
+use crate::mesh::PolyMesh;
+use nalgebra::{SymmetricEigen, UnitQuaternion};
+use thiserror::Error;
+
+/// Why a mesh gives no usable shape.
+#[derive(Debug, Error, PartialEq)]
+pub enum ShapeError {
+    #[error("shape '{0}': {1}")]
+    Hull(String, HullError),
+    #[error("shape '{0}' has no volume ({1:e})")]
+    NoVolume(String, f64),
+}
+
+/// A convex template in its principal frame, unit scale and density.
+#[derive(Clone, Debug)]
+pub struct Shape {
+    pub name: String,
+    pub vertices: Vec<Vec3>,
+    pub face_start: Vec<u32>,
+    pub face_verts: Vec<u32>,
+    /// Unit outward normal and offset of each face: `n . x <= d` inside.
+    pub normals: Vec<Vec3>,
+    pub offsets: Vec<f64>,
+    pub volume: f64,
+    /// Principal moments of inertia per unit density, ascending.
+    pub moments: Vec3,
+    /// Largest vertex distance from the centroid.
+    pub radius: f64,
+    /// The source mesh's centroid and the rotation from the principal frame to the mesh frame.
+    pub centroid_in_mesh: Vec3,
+    pub frame_in_mesh: UnitQuaternion<f64>,
+}
+
+impl Shape {
+    /// The convex hull of `mesh`'s vertices, moved to its principal frame.
+    pub fn from_mesh(mesh: &PolyMesh) -> Result<Shape, ShapeError> {
+        let h = hull::convex_hull(&mesh.vertices)
+            .map_err(|e| ShapeError::Hull(mesh.name.clone(), e))?;
+        let props = MassProps::of(&h.mesh);
+        if !(props.volume > 0.0) {
+            return Err(ShapeError::NoVolume(mesh.name.clone(), props.volume));
+        }
+        let (rot, moments) = principal_axes(&props.inertia);
+        let vertices: Vec<Vec3> = h
+            .mesh
+            .vertices
+            .iter()
+            .map(|v| rot.transpose() * (v - props.centroid))
+            .collect();
+        let normals: Vec<Vec3> = h.planes.iter().map(|(n, _)| rot.transpose() * n).collect();
+        let offsets = h
+            .planes
+            .iter()
+            .map(|(n, d)| d - n.dot(&props.centroid))
+            .collect();
+        let radius = vertices.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        let frame = UnitQuaternion::from_matrix(&rot);
+        Ok(Shape {
+            name: mesh.name.clone(),
+            vertices,
+            face_start: h.mesh.face_start,
+            face_verts: h.mesh.face_verts,
+            normals,
+            offsets,
+            volume: props.volume,
+            moments,
+            radius,
+            centroid_in_mesh: props.centroid,
+            frame_in_mesh: frame,
+        })
+    }
+
+    /// Number of faces.
+    pub fn face_count(&self) -> usize {
+        self.face_start.len() - 1
+    }
+
+    /// Vertex indices of face `f`.
+    pub fn face(&self, f: usize) -> &[u32] {
+        &self.face_verts[self.face_start[f] as usize..self.face_start[f + 1] as usize]
+    }
+
+    /// The shape scaled by `scale`, rotated by `rot` and moved to `pos`, in world coordinates.
+    pub fn posed(&self, pos: &Vec3, rot: &UnitQuaternion<f64>, scale: f64) -> Posed {
+        let r = rot.to_rotation_matrix();
+        let vertices: Vec<Vec3> = self
+            .vertices
+            .iter()
+            .map(|v| pos + r * (v * scale))
+            .collect();
+        let normals: Vec<Vec3> = self.normals.iter().map(|n| r * n).collect();
+        let offsets = self
+            .offsets
+            .iter()
+            .zip(&normals)
+            .map(|(d, n)| d * scale + n.dot(pos))
+            .collect();
+        let (lo, hi) = crate::math::bounding_box(&vertices).expect("a shape has vertices");
+        Posed {
+            vertices,
+            normals,
+            offsets,
+            lo,
+            hi,
+        }
+    }
+}
+
+/// Principal axes of a symmetric inertia tensor: a proper rotation whose columns are the axes
+/// (moments ascending; each axis signed so that its largest component is positive, the third
+/// fixed by handedness) and the moments.
+pub fn principal_axes(inertia: &Mat3) -> (Mat3, Vec3) {
+    let eig = SymmetricEigen::new(*inertia);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
+    let mut rot = Mat3::zeros();
+    for (k, &i) in order.iter().enumerate() {
+        let mut axis: Vec3 = eig.eigenvectors.column(i).into_owned();
+        let big = (0..3)
+            .max_by(|&a, &b| axis[a].abs().total_cmp(&axis[b].abs()))
+            .unwrap_or(0);
+        if axis[big] < 0.0 {
+            axis = -axis;
+        }
+        rot.set_column(k, &axis);
+    }
+    let third = rot.column(0).cross(&rot.column(1));
+    rot.set_column(2, &third);
+    let moments = Vec3::new(
+        eig.eigenvalues[order[0]],
+        eig.eigenvalues[order[1]],
+        eig.eigenvalues[order[2]],
+    );
+    (rot, moments)
+}
+
+/// A shape placed in the world: vertices, face planes and bounding box in world coordinates.
+#[derive(Clone, Debug)]
+pub struct Posed {
+    pub vertices: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
+    pub offsets: Vec<f64>,
+    pub lo: Vec3,
+    pub hi: Vec3,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::cube;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn cube_shape_in_principal_frame() {
+        let mut c = cube(0.5);
+        for v in &mut c.vertices {
+            *v += Vec3::new(3.0, 4.0, 5.0);
+        }
+        let s = Shape::from_mesh(&c).unwrap();
+        assert_relative_eq!(s.volume, 1.0, epsilon = 1e-12);
+        assert_relative_eq!(s.moments, Vec3::repeat(1.0 / 6.0), epsilon = 1e-12);
+        assert_relative_eq!(
+            s.centroid_in_mesh,
+            Vec3::new(3.0, 4.0, 5.0),
+            epsilon = 1e-12
+        );
+        assert_relative_eq!(s.radius, 0.75f64.sqrt(), epsilon = 1e-12);
+        assert_eq!(s.face_count(), 6);
+    }
+
+    #[test]
+    fn box_axes_are_sorted_and_proper() {
+        // A 1 x 2 x 3 box rotated arbitrarily: moments ascending, a proper rotation back.
+        let r = nalgebra::Rotation3::from_euler_angles(0.4, -0.7, 1.9);
+        let mut m = cube(1.0);
+        for v in &mut m.vertices {
+            *v = r * Vec3::new(v.x * 0.5, v.y * 1.0, v.z * 1.5);
+        }
+        let s = Shape::from_mesh(&m).unwrap();
+        let vol = 6.0;
+        let (a, b, c) = (1.0f64, 2.0f64, 3.0f64);
+        let expect = Vec3::new(b * b + c * c, a * a + c * c, a * a + b * b) * (vol / 12.0);
+        let mut e: Vec<f64> = expect.iter().copied().collect();
+        e.sort_by(f64::total_cmp);
+        assert_relative_eq!(s.moments, Vec3::new(e[0], e[1], e[2]), epsilon = 1e-10);
+        assert_relative_eq!(
+            s.frame_in_mesh.to_rotation_matrix().matrix().determinant(),
+            1.0,
+            epsilon = 1e-12
+        );
+        // Back to the mesh frame, the vertices are the box's.
+        for v in &s.vertices {
+            let back = s.frame_in_mesh * v + s.centroid_in_mesh;
+            assert!(m.vertices.iter().any(|w| (w - back).norm() < 1e-9));
+        }
+    }
+}
