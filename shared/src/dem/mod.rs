@@ -2,6 +2,8 @@
 //!
 //! - [`shape`]: convex templates in their principal frame.
 //! - [`overlap`]: contact geometry from the overlap polyhedron (normal, depth, point).
+//! - [`world`]: bodies, walls, the contact law, the integrator and the energy audit.
 
 pub mod overlap;
 pub mod shape;
+pub mod world;

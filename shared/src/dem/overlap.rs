@@ -110,6 +110,7 @@ fn box_excess(n: &Vec3, d: f64, lo: &Vec3, hi: &Vec3) -> f64 {
 /// `COPLANAR_REL x size`: then a face of B lying on a face of A is counted once, on A.
 const COPLANAR_REL: f64 = 1e-12;
 
+#[allow(clippy::too_many_arguments)]
 /// Clips the faces of `x` (a posed `sx`) to `y`'s half-spaces within the box, adding the pieces.
 fn clip_faces(
     sx: &Shape,
@@ -181,7 +182,7 @@ pub fn overlap(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed) -> Option<Overlap> 
     clip_faces(sa, a, b, &lo, &hi, false, &mut acc, size);
     clip_faces(sb, b, a, &lo, &hi, true, &mut acc, size);
     let volume = acc.volume6 / 6.0;
-    if !(volume > 0.0) || acc.area_b.norm_squared() == 0.0 {
+    if volume.is_nan() || volume <= 0.0 || acc.area_b.norm_squared() == 0.0 {
         return None;
     }
     let centroid = acc.reference + acc.moment24 / (4.0 * acc.volume6);
@@ -213,7 +214,7 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
         acc.piece(&tmp, true);
     }
     let volume = acc.volume6 / 6.0;
-    if !(volume > 0.0) {
+    if volume.is_nan() || volume <= 0.0 {
         return None;
     }
     let centroid = acc.reference + acc.moment24 / (4.0 * acc.volume6);

@@ -48,7 +48,7 @@ impl Shape {
         let h = hull::convex_hull(&mesh.vertices)
             .map_err(|e| ShapeError::Hull(mesh.name.clone(), e))?;
         let props = MassProps::of(&h.mesh);
-        if !(props.volume > 0.0) {
+        if props.volume.is_nan() || props.volume <= 0.0 {
             return Err(ShapeError::NoVolume(mesh.name.clone(), props.volume));
         }
         let (rot, moments) = principal_axes(&props.inertia);
