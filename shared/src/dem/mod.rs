@@ -3,7 +3,9 @@
 //! - [`shape`]: convex templates in their principal frame.
 //! - [`overlap`]: contact geometry from the overlap polyhedron (normal, depth, point).
 //! - [`world`]: bodies, walls, the contact law, the integrator and the energy audit.
+//! - [`state`]: scenes and restartable states as JSON lines.
 
 pub mod overlap;
 pub mod shape;
+pub mod state;
 pub mod world;

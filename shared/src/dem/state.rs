@@ -1,0 +1,762 @@
+//! Scenes and states as JSON lines (format `granular-dem`, version 1, SI units).
+//!
+//! One record per line, a header first. A *state* (what `dem` writes) is a complete restart
+//! point: shapes in their principal frame with the derived quantities the engine uses, bodies
+//! (velocities at the half step, as the leapfrog keeps them), walls, contacts with their shear
+//! springs, time, step and the energy accumulators; floats are written as the shortest text that
+//! reads back to the same f64, so a run restarted from a state continues bit for bit. A *scene*
+//! (what a user writes) may give shapes as plain meshes (`vertices` and `faces`, any frame) and
+//! leave out what follows from them. The records are specified with examples in
+//! `docs/dem-state.md`.
+
+use super::shape::Shape;
+use super::world::{Body, Contact, Energy, Material, Partner, PlaneWall, World};
+use crate::math::Vec3;
+use crate::mesh::PolyMesh;
+use nalgebra::{Quaternion, UnitQuaternion};
+use serde::{Deserialize, Serialize};
+use std::io::{BufRead, Write};
+use thiserror::Error;
+
+/// The format name in the header.
+pub const FORMAT: &str = "granular-dem";
+/// The version this code reads and writes.
+pub const VERSION: u32 = 1;
+
+/// A scene or state error, naming the line.
+#[derive(Debug, Error)]
+pub enum StateError {
+    #[error("reading the scene: {0}")]
+    Io(#[from] std::io::Error),
+    #[error("line {line}: {msg}")]
+    Line { line: usize, msg: String },
+    #[error("{0}")]
+    Scene(String),
+}
+
+fn at(line: usize, msg: impl Into<String>) -> StateError {
+    StateError::Line {
+        line,
+        msg: msg.into(),
+    }
+}
+
+/// One JSON line.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Record {
+    Header {
+        format: String,
+        version: u32,
+        units: String,
+    },
+    Material {
+        density: f64,
+        kn: f64,
+        ks: f64,
+        friction: f64,
+        wall_friction: f64,
+        damping: f64,
+    },
+    Clock {
+        time: f64,
+        step: u64,
+        dt: f64,
+        gravity: [f64; 3],
+    },
+    Shape(ShapeRecord),
+    Body(BodyRecord),
+    Wall(WallRecord),
+    Contact(ContactRecord),
+    Energy {
+        friction: f64,
+        damping: f64,
+        gravity_work: f64,
+        wall_work: f64,
+    },
+}
+
+/// A shape: either a mesh (`vertices`, `faces`; its convex hull is taken and moved to the
+/// principal frame) or, as `dem` writes it, the principal form with its derived quantities.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeRecord {
+    pub id: u32,
+    pub name: String,
+    pub vertices: Vec<[f64; 3]>,
+    pub faces: Vec<Vec<u32>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub principal: Option<Principal>,
+}
+
+/// What the engine derives from a shape, stored so that a restart needs no recomputation.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Principal {
+    pub normals: Vec<[f64; 3]>,
+    pub offsets: Vec<f64>,
+    pub volume: f64,
+    pub moments: [f64; 3],
+    pub radius: f64,
+    pub centroid_in_mesh: [f64; 3],
+    pub frame_in_mesh: [f64; 4],
+}
+
+/// A body. `rot` is the unit quaternion (w, x, y, z) from the shape's principal frame to world
+/// axes; `vel` and `ang_mom` (world axes, about the centroid) are at the half step.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyRecord {
+    pub id: u32,
+    pub shape: u32,
+    pub scale: f64,
+    pub pos: [f64; 3],
+    #[serde(default = "identity")]
+    pub rot: [f64; 4],
+    #[serde(default)]
+    pub vel: [f64; 3],
+    #[serde(default)]
+    pub ang_mom: [f64; 3],
+    #[serde(default)]
+    pub fixed: bool,
+}
+
+fn identity() -> [f64; 4] {
+    [1.0, 0.0, 0.0, 0.0]
+}
+
+/// A plane wall: solid where `normal . x <= offset`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WallRecord {
+    pub id: u32,
+    pub kind: String,
+    pub normal: [f64; 3],
+    pub offset: f64,
+    #[serde(default)]
+    pub velocity: [f64; 3],
+    #[serde(default)]
+    pub force: [f64; 3],
+}
+
+/// A contact: body `body` touched by `partner` (`{"body": i}` or `{"wall": j}`); the normal
+/// points from the partner to the body; forces act on the body (the partner gets the opposite).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactRecord {
+    pub body: u32,
+    pub partner: PartnerRecord,
+    pub normal: [f64; 3],
+    pub point: [f64; 3],
+    pub depth: f64,
+    pub normal_force: f64,
+    pub shear: [f64; 3],
+    pub sliding: bool,
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase", deny_unknown_fields)]
+pub enum PartnerRecord {
+    Body(u32),
+    Wall(u32),
+}
+
+fn v3(a: &[f64; 3]) -> Vec3 {
+    Vec3::new(a[0], a[1], a[2])
+}
+
+fn a3(v: &Vec3) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+fn finite(line: usize, what: &str, xs: &[f64]) -> Result<(), StateError> {
+    if xs.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(at(line, format!("{what} has a value that is not finite")))
+    }
+}
+
+/// Reads a scene or state. Shapes given as meshes must be closed, outward and convex.
+pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
+    let mut world = World::new(Material::default(), Vec3::zeros());
+    let mut header = false;
+    let mut material_seen = false;
+    let mut energy = Energy::default();
+    let mut pending_bodies: Vec<(usize, BodyRecord)> = Vec::new();
+    let mut contacts = Vec::new();
+    let mut last_line = 0;
+    for (k, line) in input.lines().enumerate() {
+        let n = k + 1;
+        last_line = n;
+        let line = line?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let rec: Record = serde_json::from_str(&line).map_err(|e| at(n, e.to_string()))?;
+        if !header {
+            match &rec {
+                Record::Header {
+                    format,
+                    version,
+                    units,
+                } => {
+                    if format != FORMAT {
+                        return Err(at(n, format!("format '{format}' is not '{FORMAT}'")));
+                    }
+                    if *version != VERSION {
+                        return Err(at(n, format!("version {version} is not supported (this dem reads version {VERSION})")));
+                    }
+                    if units != "SI" {
+                        return Err(at(n, format!("units '{units}' are not 'SI'")));
+                    }
+                    header = true;
+                    continue;
+                }
+                _ => {
+                    return Err(at(
+                        n,
+                        "the first record must be the header {\"type\":\"header\",...}",
+                    ))
+                }
+            }
+        }
+        match rec {
+            Record::Header { .. } => return Err(at(n, "a second header")),
+            Record::Material {
+                density,
+                kn,
+                ks,
+                friction,
+                wall_friction,
+                damping,
+            } => {
+                finite(
+                    n,
+                    "material",
+                    &[density, kn, ks, friction, wall_friction, damping],
+                )?;
+                if density <= 0.0
+                    || kn <= 0.0
+                    || ks < 0.0
+                    || friction < 0.0
+                    || wall_friction < 0.0
+                    || !(0.0..1.0).contains(&damping)
+                {
+                    return Err(at(n, "material: density and kn must be positive, ks, frictions >= 0, damping in [0, 1)"));
+                }
+                world.material = Material {
+                    density,
+                    kn,
+                    ks,
+                    friction,
+                    wall_friction,
+                    damping,
+                };
+                material_seen = true;
+            }
+            Record::Clock {
+                time,
+                step,
+                dt,
+                gravity,
+            } => {
+                finite(n, "clock", &[time, dt, gravity[0], gravity[1], gravity[2]])?;
+                if dt < 0.0 {
+                    return Err(at(n, "dt must not be negative (0: choose automatically)"));
+                }
+                world.time = time;
+                world.step = step;
+                world.dt = dt;
+                world.gravity = v3(&gravity);
+            }
+            Record::Shape(s) => {
+                if s.id as usize != world.shapes.len() {
+                    return Err(at(
+                        n,
+                        format!(
+                            "shape id {} out of order (expected {})",
+                            s.id,
+                            world.shapes.len()
+                        ),
+                    ));
+                }
+                world.shapes.push(shape_from_record(n, s)?);
+            }
+            Record::Body(b) => {
+                if b.id as usize != pending_bodies.len() {
+                    return Err(at(
+                        n,
+                        format!(
+                            "body id {} out of order (expected {})",
+                            b.id,
+                            pending_bodies.len()
+                        ),
+                    ));
+                }
+                pending_bodies.push((n, b));
+            }
+            Record::Wall(w) => {
+                if w.kind != "plane" {
+                    return Err(at(
+                        n,
+                        format!("wall kind '{}' is not supported (plane)", w.kind),
+                    ));
+                }
+                finite(
+                    n,
+                    "wall",
+                    &[w.normal[0], w.normal[1], w.normal[2], w.offset],
+                )?;
+                let norm = v3(&w.normal).norm();
+                if (norm - 1.0).abs() > 1e-9 {
+                    return Err(at(n, format!("wall normal has length {norm}, not 1")));
+                }
+                world.walls.push(PlaneWall {
+                    normal: v3(&w.normal),
+                    offset: w.offset,
+                    velocity: v3(&w.velocity),
+                    force: v3(&w.force),
+                });
+            }
+            Record::Contact(c) => contacts.push((n, c)),
+            Record::Energy {
+                friction,
+                damping,
+                gravity_work,
+                wall_work,
+            } => {
+                energy = Energy {
+                    friction,
+                    damping,
+                    gravity_work,
+                    wall_work,
+                    ..Default::default()
+                };
+            }
+        }
+    }
+    if !header {
+        return Err(StateError::Scene(
+            "the input is empty: expected a scene starting with a header line".into(),
+        ));
+    }
+    if !material_seen {
+        return Err(at(last_line, "no material record"));
+    }
+    for (n, b) in pending_bodies {
+        let shape = world.shapes.get(b.shape as usize).ok_or_else(|| {
+            at(
+                n,
+                format!(
+                    "body {} uses shape {} which is not defined (before it)",
+                    b.id, b.shape
+                ),
+            )
+        })?;
+        let _ = shape;
+        finite(
+            n,
+            "body",
+            &[
+                b.scale,
+                b.pos[0],
+                b.pos[1],
+                b.pos[2],
+                b.rot[0],
+                b.rot[1],
+                b.rot[2],
+                b.rot[3],
+                b.vel[0],
+                b.vel[1],
+                b.vel[2],
+                b.ang_mom[0],
+                b.ang_mom[1],
+                b.ang_mom[2],
+            ],
+        )?;
+        if b.scale <= 0.0 {
+            return Err(at(
+                n,
+                format!(
+                    "body {} has scale {}: it must be positive (zero mass otherwise)",
+                    b.id, b.scale
+                ),
+            ));
+        }
+        let q = Quaternion::new(b.rot[0], b.rot[1], b.rot[2], b.rot[3]);
+        if (q.norm() - 1.0).abs() > 1e-9 {
+            return Err(at(
+                n,
+                format!("body {} orientation has norm {}, not 1", b.id, q.norm()),
+            ));
+        }
+        let i = world.add_body(
+            b.shape,
+            b.scale,
+            v3(&b.pos),
+            UnitQuaternion::new_unchecked(q),
+        );
+        let body = &mut world.bodies[i];
+        body.vel = v3(&b.vel);
+        body.ang_mom = v3(&b.ang_mom);
+        body.fixed = b.fixed;
+    }
+    for (n, c) in contacts {
+        let nb = world.bodies.len() as u32;
+        let partner = match c.partner {
+            PartnerRecord::Body(a) if a < c.body => Partner::Body(a),
+            PartnerRecord::Wall(w) if (w as usize) < world.walls.len() => Partner::Wall(w),
+            _ => {
+                return Err(at(
+                    n,
+                    "contact partner is not a known wall or a body with a lower id",
+                ))
+            }
+        };
+        if c.body >= nb {
+            return Err(at(
+                n,
+                format!("contact names body {} which does not exist", c.body),
+            ));
+        }
+        world.contacts.insert(
+            (partner, c.body),
+            Contact {
+                normal: v3(&c.normal),
+                point: v3(&c.point),
+                depth: c.depth,
+                normal_force: c.normal_force,
+                shear: v3(&c.shear),
+                sliding: c.sliding,
+            },
+        );
+    }
+    world.energy = Energy {
+        kinetic: world.bodies.iter().map(Body::kinetic_energy).sum(),
+        ..energy
+    };
+    world.energy.elastic = world
+        .contacts
+        .values()
+        .map(|c| {
+            0.5 * c.normal_force.powi(2) / world.material.kn
+                + 0.5 * c.shear.norm_squared() / world.material.ks.max(f64::MIN_POSITIVE)
+        })
+        .sum();
+    check_fixed_overlaps(&world)?;
+    Ok(world)
+}
+
+fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
+    let vertices: Vec<Vec3> = s.vertices.iter().map(v3).collect();
+    for (i, v) in vertices.iter().enumerate() {
+        if !v.iter().all(|x| x.is_finite()) {
+            return Err(at(
+                n,
+                format!("shape '{}' vertex {i} is not finite", s.name),
+            ));
+        }
+    }
+    let mut mesh = PolyMesh::from_faces(s.name.clone(), vertices, &s.faces);
+    if let Some(p) = s.principal {
+        // The exact principal form written by dem: taken as it is.
+        let face_start = std::mem::take(&mut mesh.face_start);
+        let face_verts = std::mem::take(&mut mesh.face_verts);
+        return Ok(Shape {
+            name: s.name,
+            vertices: mesh.vertices,
+            face_start,
+            face_verts,
+            normals: p.normals.iter().map(v3).collect(),
+            offsets: p.offsets,
+            volume: p.volume,
+            moments: v3(&p.moments),
+            radius: p.radius,
+            centroid_in_mesh: v3(&p.centroid_in_mesh),
+            frame_in_mesh: UnitQuaternion::new_unchecked(Quaternion::new(
+                p.frame_in_mesh[0],
+                p.frame_in_mesh[1],
+                p.frame_in_mesh[2],
+                p.frame_in_mesh[3],
+            )),
+        });
+    }
+    mesh.topology(None)
+        .map_err(|e| at(n, format!("shape '{}': {e}", s.name)))?;
+    let props = crate::mass::MassProps::of(&mesh);
+    if props.volume <= 0.0 {
+        return Err(at(n, format!("shape '{}' faces point inwards (volume {:e}); faces must be counter-clockwise seen from outside", s.name, props.volume)));
+    }
+    let shape = Shape::from_mesh(&mesh).map_err(|e| at(n, e.to_string()))?;
+    // Convex: the hull holds no more volume than the mesh (to rounding).
+    if shape.volume > props.volume * (1.0 + 1e-9) {
+        return Err(at(
+            n,
+            format!(
+                "shape '{}' is not convex (its hull has {:.6}% more volume); give its convex hull",
+                s.name,
+                (shape.volume / props.volume - 1.0) * 100.0
+            ),
+        ));
+    }
+    Ok(shape)
+}
+
+/// Fixed bodies may not overlap one another (nothing would ever separate them).
+fn check_fixed_overlaps(world: &World) -> Result<(), StateError> {
+    let fixed: Vec<usize> = (0..world.bodies.len())
+        .filter(|&i| world.bodies[i].fixed)
+        .collect();
+    for (k, &i) in fixed.iter().enumerate() {
+        for &j in &fixed[k + 1..] {
+            let (a, b) = (&world.bodies[i], &world.bodies[j]);
+            let (sa, sb) = (
+                &world.shapes[a.shape as usize],
+                &world.shapes[b.shape as usize],
+            );
+            let (pa, pb) = (
+                sa.posed(&a.pos, &a.rot, a.scale),
+                sb.posed(&b.pos, &b.rot, b.scale),
+            );
+            if super::overlap::overlap(sa, &pa, sb, &pb).is_some() {
+                return Err(StateError::Scene(format!(
+                    "fixed bodies {i} and {j} overlap"
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Writes the world as a state: a complete restart point.
+pub fn write_world<W: Write>(world: &World, mut out: W) -> std::io::Result<()> {
+    let mut line = |r: &Record| -> std::io::Result<()> {
+        serde_json::to_writer(&mut out, r)?;
+        out.write_all(b"\n")
+    };
+    line(&Record::Header {
+        format: FORMAT.into(),
+        version: VERSION,
+        units: "SI".into(),
+    })?;
+    let m = &world.material;
+    line(&Record::Material {
+        density: m.density,
+        kn: m.kn,
+        ks: m.ks,
+        friction: m.friction,
+        wall_friction: m.wall_friction,
+        damping: m.damping,
+    })?;
+    line(&Record::Clock {
+        time: world.time,
+        step: world.step,
+        dt: world.dt,
+        gravity: a3(&world.gravity),
+    })?;
+    for (id, s) in world.shapes.iter().enumerate() {
+        let q = s.frame_in_mesh.quaternion();
+        line(&Record::Shape(ShapeRecord {
+            id: id as u32,
+            name: s.name.clone(),
+            vertices: s.vertices.iter().map(a3).collect(),
+            faces: (0..s.face_count()).map(|f| s.face(f).to_vec()).collect(),
+            principal: Some(Principal {
+                normals: s.normals.iter().map(a3).collect(),
+                offsets: s.offsets.clone(),
+                volume: s.volume,
+                moments: a3(&s.moments),
+                radius: s.radius,
+                centroid_in_mesh: a3(&s.centroid_in_mesh),
+                frame_in_mesh: [q.w, q.i, q.j, q.k],
+            }),
+        }))?;
+    }
+    for (id, b) in world.bodies.iter().enumerate() {
+        let q = b.rot.quaternion();
+        line(&Record::Body(BodyRecord {
+            id: id as u32,
+            shape: b.shape,
+            scale: b.scale,
+            pos: a3(&b.pos),
+            rot: [q.w, q.i, q.j, q.k],
+            vel: a3(&b.vel),
+            ang_mom: a3(&b.ang_mom),
+            fixed: b.fixed,
+        }))?;
+    }
+    for (id, w) in world.walls.iter().enumerate() {
+        line(&Record::Wall(WallRecord {
+            id: id as u32,
+            kind: "plane".into(),
+            normal: a3(&w.normal),
+            offset: w.offset,
+            velocity: a3(&w.velocity),
+            force: a3(&w.force),
+        }))?;
+    }
+    for ((partner, body), c) in &world.contacts {
+        let partner = match partner {
+            Partner::Body(a) => PartnerRecord::Body(*a),
+            Partner::Wall(w) => PartnerRecord::Wall(*w),
+        };
+        line(&Record::Contact(ContactRecord {
+            body: *body,
+            partner,
+            normal: a3(&c.normal),
+            point: a3(&c.point),
+            depth: c.depth,
+            normal_force: c.normal_force,
+            shear: a3(&c.shear),
+            sliding: c.sliding,
+        }))?;
+    }
+    let e = &world.energy;
+    line(&Record::Energy {
+        friction: e.friction,
+        damping: e.damping,
+        gravity_work: e.gravity_work,
+        wall_work: e.wall_work,
+    })?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene() -> String {
+        let cube = crate::mesh::cube(0.5);
+        let verts: Vec<[f64; 3]> = cube.vertices.iter().map(a3).collect();
+        let faces: Vec<Vec<u32>> = cube.faces().map(|f| f.to_vec()).collect();
+        format!(
+            "{{\"type\":\"header\",\"format\":\"granular-dem\",\"version\":1,\"units\":\"SI\"}}\n\
+             {{\"type\":\"material\",\"density\":2600,\"kn\":1e8,\"ks\":5e7,\"friction\":0.5,\"wall_friction\":0,\"damping\":0.3}}\n\
+             {{\"type\":\"clock\",\"time\":0,\"step\":0,\"dt\":0,\"gravity\":[0,0,-9.81]}}\n\
+             {{\"type\":\"shape\",\"id\":0,\"name\":\"cube\",\"vertices\":{},\"faces\":{}}}\n\
+             {{\"type\":\"wall\",\"id\":0,\"kind\":\"plane\",\"normal\":[0,0,1],\"offset\":0}}\n\
+             {{\"type\":\"body\",\"id\":0,\"shape\":0,\"scale\":0.02,\"pos\":[0,0,0.009999998]}}\n\
+             {{\"type\":\"body\",\"id\":1,\"shape\":0,\"scale\":0.02,\"pos\":[0.003,0,0.0301],\"vel\":[0,0,-0.1]}}\n",
+            serde_json::to_string(&verts).unwrap(),
+            serde_json::to_string(&faces).unwrap()
+        )
+    }
+
+    #[test]
+    fn a_state_round_trips_exactly() {
+        let mut w = read_world(scene().as_bytes()).unwrap();
+        w.dt = 0.2 * w.critical_dt();
+        for _ in 0..20_000 {
+            w.step();
+        }
+        assert!(
+            w.contacts.len() == 2,
+            "a wall and a body contact: {}",
+            w.contacts.len()
+        );
+        let mut a = Vec::new();
+        write_world(&w, &mut a).unwrap();
+        let back = read_world(a.as_slice()).unwrap();
+        let mut b = Vec::new();
+        write_world(&back, &mut b).unwrap();
+        assert_eq!(String::from_utf8(a).unwrap(), String::from_utf8(b).unwrap());
+    }
+
+    fn error_of(text: &str) -> String {
+        read_world(text.as_bytes()).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn bad_scenes_name_the_line() {
+        let good = scene();
+        let lines: Vec<&str> = good.lines().collect();
+        let with = |k: usize, new: &str| {
+            let mut l = lines.clone();
+            l[k] = new;
+            l.join("\n")
+        };
+        assert!(error_of(&with(
+            0,
+            r#"{"type":"header","format":"granular-dem","version":7,"units":"SI"}"#
+        ))
+        .contains("line 1: version 7"));
+        assert!(error_of(&with(
+            5,
+            r#"{"type":"body","id":0,"shape":0,"pos":[0,0,0]}"#
+        ))
+        .contains("line 6: missing field `scale`"));
+        assert!(error_of(&with(
+            5,
+            r#"{"type":"body","id":0,"shape":0,"scale":0,"pos":[0,0,0]}"#
+        ))
+        .contains("line 6: body 0 has scale 0"));
+        assert!(error_of(&with(
+            5,
+            r#"{"type":"body","id":0,"shape":0,"scale":1,"pos":[0,0,1e999]}"#
+        ))
+        .contains("line 6"));
+        assert!(error_of(&with(
+            5,
+            r#"{"type":"body","id":0,"shape":3,"scale":1,"pos":[0,0,0]}"#
+        ))
+        .contains("shape 3"));
+        let truncated = &good[..good.len() - 20];
+        assert!(
+            error_of(truncated).contains("line 7"),
+            "{}",
+            error_of(truncated)
+        );
+        assert!(error_of("").contains("empty"));
+        assert!(error_of(&with(1, r#"{"type":"material","density":2600}"#)).contains("line 2"));
+        // An inside-out cube: faces reversed.
+        let inside_out = good
+            .replace("[0,2,3,1]", "[1,3,2,0]")
+            .replace("[4,5,7,6]", "[6,7,5,4]")
+            .replace("[0,1,5,4]", "[4,5,1,0]")
+            .replace("[2,6,7,3]", "[3,7,6,2]")
+            .replace("[0,4,6,2]", "[2,6,4,0]")
+            .replace("[1,3,7,5]", "[5,7,3,1]");
+        assert!(
+            error_of(&inside_out).contains("inwards"),
+            "{}",
+            error_of(&inside_out)
+        );
+        // Two fixed bodies overlapping.
+        let fixed = with(6, r#"{"type":"body","id":1,"shape":0,"scale":0.02,"pos":[0.003,0,0.009999998],"fixed":true}"#).replace(r#""pos":[0,0,0.009999998]}"#, r#""pos":[0,0,0.009999998],"fixed":true}"#);
+        assert!(
+            error_of(&fixed).contains("fixed bodies 0 and 1 overlap"),
+            "{}",
+            error_of(&fixed)
+        );
+    }
+
+    #[test]
+    fn a_non_convex_shape_is_rejected() {
+        // An L-shaped prism.
+        let pts = [(0., 0.), (2., 0.), (2., 1.), (1., 1.), (1., 2.), (0., 2.)];
+        let mut v: Vec<[f64; 3]> = pts.iter().map(|&(x, y)| [x, y, 0.0]).collect();
+        v.extend(pts.iter().map(|&(x, y)| [x, y, 1.0]));
+        let mut faces = vec![vec![5, 4, 3, 2, 1, 0], vec![6, 7, 8, 9, 10, 11]];
+        for i in 0..6u32 {
+            let j = (i + 1) % 6;
+            faces.push(vec![i, j, j + 6, i + 6]);
+        }
+        let rec = format!(
+            "{{\"type\":\"shape\",\"id\":0,\"name\":\"L\",\"vertices\":{},\"faces\":{}}}",
+            serde_json::to_string(&v).unwrap(),
+            serde_json::to_string(&faces).unwrap()
+        );
+        let text = scene()
+            .lines()
+            .enumerate()
+            .map(|(k, l)| if k == 3 { rec.clone() } else { l.to_string() })
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert!(
+            error_of(&text).contains("line 4: shape 'L' is not convex"),
+            "{}",
+            error_of(&text)
+        );
+    }
+}
