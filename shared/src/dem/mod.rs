@@ -4,8 +4,10 @@
 //! - [`overlap`]: contact geometry from the overlap polyhedron (normal, depth, point).
 //! - [`world`]: bodies, walls, the contact law, the integrator and the energy audit.
 //! - [`state`]: scenes and restartable states as JSON lines.
+//! - [`peer`]: the Yade peer benchmark's scene format.
 
 pub mod overlap;
+pub mod peer;
 pub mod shape;
 pub mod state;
 pub mod world;

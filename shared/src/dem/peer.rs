@@ -1,0 +1,142 @@
+//! Reads the peer benchmark's scene format (`peer-scene v1`, `../shared/peers/yade/README.md`)
+//! so that the same scene runs in Yade and here.
+//!
+//! `box Lx Ly Lz` gives a floor `z = 0` and side walls `x = 0, Lx`, `y = 0, Ly` (open top);
+//! each particle line `id k deq x y z nv v1x v1y v1z ...` gives its centroid and its vertices as
+//! offsets from it in world axes; the particle is their convex hull. A settled-state file
+//! (`id x y z qw qx qy qz`) moves and turns the particles: world vertex = (x, y, z) + R(q) v.
+//! The peer's physics parameters: density 2600, friction 0.5 on particles and walls, damping
+//! 0.3, gravity 9.81 down; our linear law uses the paper's kn = 1e8 N/m, ks = 5e7 N/m.
+
+use super::shape::Shape;
+use super::world::{Material, PlaneWall, World};
+use crate::hull;
+use crate::math::Vec3;
+use nalgebra::{Quaternion, UnitQuaternion};
+use std::io::BufRead;
+
+fn err(line: usize, msg: impl Into<String>) -> String {
+    format!("line {line}: {}", msg.into())
+}
+
+/// A world from a peer scene; `settled` optionally moves the particles to a settled state.
+pub fn read_peer_scene<R: BufRead, S: BufRead>(scene: R, settled: Option<S>) -> Result<World, String> {
+    let material = Material { wall_friction: 0.5, ..Default::default() };
+    let mut world = World::new(material, Vec3::new(0.0, 0.0, -9.81));
+    let mut boxed = None;
+    let mut particles: Vec<(Vec3, Vec<Vec3>)> = Vec::new();
+    for (k, line) in scene.lines().enumerate() {
+        let n = k + 1;
+        let line = line.map_err(|e| err(n, e.to_string()))?;
+        let t = line.trim();
+        if t.is_empty() || t.starts_with('#') || t.starts_with("params") {
+            continue;
+        }
+        let nums: Result<Vec<f64>, _> = t.split_whitespace().skip(usize::from(t.starts_with("box"))).map(str::parse::<f64>).collect();
+        let nums = nums.map_err(|_| err(n, "expected numbers"))?;
+        if !nums.iter().all(|x| x.is_finite()) {
+            return Err(err(n, "a number is not finite"));
+        }
+        if t.starts_with("box") {
+            if nums.len() != 3 {
+                return Err(err(n, "box needs Lx Ly Lz"));
+            }
+            boxed = Some(Vec3::new(nums[0], nums[1], nums[2]));
+            continue;
+        }
+        if nums.len() < 7 {
+            return Err(err(n, "a particle line needs id k deq x y z nv and vertices"));
+        }
+        let id = nums[0] as usize;
+        if id != particles.len() {
+            return Err(err(n, format!("particle id {id} out of order (expected {})", particles.len())));
+        }
+        let nv = nums[6] as usize;
+        if nums.len() != 7 + 3 * nv || nv < 4 {
+            return Err(err(n, format!("particle {id} says {nv} vertices but the line holds {} numbers after nv", nums.len() - 7)));
+        }
+        let centre = Vec3::new(nums[3], nums[4], nums[5]);
+        let verts = (0..nv).map(|i| Vec3::new(nums[7 + 3 * i], nums[8 + 3 * i], nums[9 + 3 * i])).collect();
+        particles.push((centre, verts));
+    }
+    let size = boxed.ok_or("the scene has no 'box Lx Ly Lz' line")?;
+    let walls = [
+        (Vec3::zeros(), Vec3::z()),
+        (Vec3::zeros(), Vec3::x()),
+        (Vec3::new(size.x, 0.0, 0.0), -Vec3::x()),
+        (Vec3::zeros(), Vec3::y()),
+        (Vec3::new(0.0, size.y, 0.0), -Vec3::y()),
+    ];
+    world.walls = walls.iter().map(|&(p, n)| PlaneWall::new(p, n)).collect();
+    let mut poses: Vec<(Vec3, UnitQuaternion<f64>)> = particles.iter().map(|(c, _)| (*c, UnitQuaternion::identity())).collect();
+    if let Some(settled) = settled {
+        let mut seen = 0;
+        for (k, line) in settled.lines().enumerate() {
+            let n = k + 1;
+            let line = line.map_err(|e| err(n, e.to_string()))?;
+            let t = line.trim();
+            if t.is_empty() || t.starts_with('#') {
+                continue;
+            }
+            let v: Vec<f64> = t.split_whitespace().map(str::parse::<f64>).collect::<Result<_, _>>().map_err(|_| err(n, "settled state: expected numbers"))?;
+            if v.len() != 8 || v[0] as usize >= poses.len() {
+                return Err(err(n, "settled state: expected 'id x y z qw qx qy qz' for a known id"));
+            }
+            let q = UnitQuaternion::new_normalize(Quaternion::new(v[4], v[5], v[6], v[7]));
+            poses[v[0] as usize] = (Vec3::new(v[1], v[2], v[3]), q);
+            seen += 1;
+        }
+        if seen != poses.len() {
+            return Err(format!("settled state gives {seen} particles, the scene has {}", poses.len()));
+        }
+    }
+    for (i, ((_, verts), (centre, q))) in particles.iter().zip(&poses).enumerate() {
+        let h = hull::convex_hull(verts).map_err(|e| format!("particle {i}: {e}"))?;
+        let mut mesh = h.mesh;
+        mesh.name = format!("peer{i}");
+        let shape = Shape::from_mesh(&mesh).map_err(|e| e.to_string())?;
+        // The shape's principal frame sits at centroid_in_mesh, turned by frame_in_mesh, in the
+        // particle's offset frame; the pose maps offsets to the world.
+        let pos = centre + q * shape.centroid_in_mesh;
+        let rot = q * shape.frame_in_mesh;
+        let s = world.add_shape(shape);
+        world.add_body(s, 1.0, pos, rot);
+    }
+    Ok(world)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SCENE: &str = "# peer-scene v1\nbox 0.1 0.1 0.2\nparams n=1\n0 4 0.01 0.05 0.05 0.05 4 0.01 0 0 0 0.01 0 0 0 0.01 -0.005 -0.005 -0.005\n";
+
+    #[test]
+    fn reads_a_scene_and_keeps_world_vertices() {
+        let w = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>).unwrap();
+        assert_eq!((w.bodies.len(), w.walls.len()), (1, 5));
+        let b = &w.bodies[0];
+        let posed = w.shapes[0].posed(&b.pos, &b.rot, b.scale);
+        // Every listed world vertex is a vertex of the posed body.
+        for v in [Vec3::new(0.06, 0.05, 0.05), Vec3::new(0.045, 0.045, 0.045)] {
+            assert!(posed.vertices.iter().any(|p| (p - v).norm() < 1e-12), "{v} missing");
+        }
+    }
+
+    #[test]
+    fn a_settled_pose_moves_and_turns() {
+        let settled = "0 0.02 0.03 0.04 0 0 0 1\n"; // half a turn about z
+        let w = read_peer_scene(SCENE.as_bytes(), Some(settled.as_bytes())).unwrap();
+        let b = &w.bodies[0];
+        let posed = w.shapes[0].posed(&b.pos, &b.rot, b.scale);
+        let v = Vec3::new(0.02 - 0.01, 0.03, 0.04); // (0.01, 0, 0) turned half a turn
+        assert!(posed.vertices.iter().any(|p| (p - v).norm() < 1e-12));
+    }
+
+    #[test]
+    fn bad_peer_input() {
+        assert!(read_peer_scene("0 4 0.01 0 0 0 4 1 2 3\n".as_bytes(), None::<&[u8]>).unwrap_err().contains("line 1"));
+        assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>).unwrap_err().contains("box needs"));
+        assert!(read_peer_scene("# nothing\n".as_bytes(), None::<&[u8]>).unwrap_err().contains("no 'box"));
+    }
+}
