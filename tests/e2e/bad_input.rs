@@ -178,7 +178,7 @@ fn plot_rejects_bad_tables() {
 
 #[test]
 fn help_shows_an_example_pipe() {
-    for tool in ["polygen", "abrade", "roundness", "render", "plot"] {
+    for tool in ["polygen", "abrade", "roundness", "render", "plot", "dem"] {
         let out = ok(tool, &["--help"], b"");
         let text = String::from_utf8(out).unwrap();
         assert!(

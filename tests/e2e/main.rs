@@ -1,6 +1,7 @@
 //! End-to-end tests: the real binaries, fed through pipes.
 
 mod bad_input;
+mod dem;
 mod pipes;
 
 use std::io::Write;
@@ -19,6 +20,7 @@ pub fn run_env(tool: &str, args: &[&str], stdin: &[u8], env: &[(&str, &str)]) ->
         "roundness" => env!("CARGO_BIN_EXE_roundness"),
         "render" => env!("CARGO_BIN_EXE_render"),
         "plot" => env!("CARGO_BIN_EXE_plot"),
+        "dem" => env!("CARGO_BIN_EXE_dem"),
         other => panic!("no tool {other}"),
     };
     let mut child = Command::new(exe)
@@ -48,6 +50,11 @@ pub fn ok(tool: &str, args: &[&str], stdin: &[u8]) -> Vec<u8> {
         String::from_utf8_lossy(&out.stderr)
     );
     out.stdout
+}
+
+/// Text of a file of the repository.
+pub fn repo_file(path: &str) -> Vec<u8> {
+    std::fs::read(format!("{}/{path}", env!("CARGO_MANIFEST_DIR"))).expect("file exists")
 }
 
 /// Text of the fixture file `name`.

@@ -36,7 +36,7 @@ struct Cli {
     #[arg(long)]
     time: Option<f64>,
     /// Time step, seconds (default: the scene's, or --safety x critical)
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     dt: Option<f64>,
     /// Safety factor on the critical time step when the scene has none
     #[arg(long, default_value_t = 0.2)]
@@ -83,7 +83,11 @@ fn series_line(w: &World) -> SeriesLine {
         wall_work: e.wall_work,
         balance: e.balance(),
         contacts: w.contacts.len(),
-        wall_forces: w.walls.iter().map(|x| [x.force.x, x.force.y, x.force.z]).collect(),
+        wall_forces: w
+            .walls
+            .iter()
+            .map(|x| [x.force.x, x.force.y, x.force.z])
+            .collect(),
     }
 }
 
@@ -95,10 +99,13 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let mut world = match &args.import_peer {
         Some(path) => {
             let open = |p: &std::path::Path| -> anyhow::Result<std::io::BufReader<std::fs::File>> {
-                Ok(std::io::BufReader::new(std::fs::File::open(p).with_context(|| format!("opening {}", p.display()))?))
+                Ok(std::io::BufReader::new(
+                    std::fs::File::open(p).with_context(|| format!("opening {}", p.display()))?,
+                ))
             };
             let settled = args.peer_state.as_deref().map(open).transpose()?;
-            peer::read_peer_scene(open(path)?, settled).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+            peer::read_peer_scene(open(path)?, settled)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
         }
         None => state::read_world(cli::stdin())?,
     };
@@ -117,7 +124,10 @@ fn run(args: Cli) -> anyhow::Result<()> {
         }
         let critical = world.critical_dt();
         world.dt = args.safety * critical;
-        eprintln!("dem: time step {:.4e} s = {} x critical {:.4e} s", world.dt, args.safety, critical);
+        eprintln!(
+            "dem: time step {:.4e} s = {} x critical {:.4e} s",
+            world.dt, args.safety, critical
+        );
     }
     let steps = match (args.steps, args.time) {
         (Some(n), _) => n,
@@ -129,7 +139,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
         bail!("--every must be at least 1");
     }
     let mut series = match &args.series {
-        Some(p) => Some(std::io::BufWriter::new(std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))?)),
+        Some(p) => Some(std::io::BufWriter::new(
+            std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))?,
+        )),
         None => None,
     };
     let mut progress = cli::Progress::new("dem");

@@ -20,8 +20,14 @@ fn err(line: usize, msg: impl Into<String>) -> String {
 }
 
 /// A world from a peer scene; `settled` optionally moves the particles to a settled state.
-pub fn read_peer_scene<R: BufRead, S: BufRead>(scene: R, settled: Option<S>) -> Result<World, String> {
-    let material = Material { wall_friction: 0.5, ..Default::default() };
+pub fn read_peer_scene<R: BufRead, S: BufRead>(
+    scene: R,
+    settled: Option<S>,
+) -> Result<World, String> {
+    let material = Material {
+        wall_friction: 0.5,
+        ..Default::default()
+    };
     let mut world = World::new(material, Vec3::new(0.0, 0.0, -9.81));
     let mut boxed = None;
     let mut particles: Vec<(Vec3, Vec<Vec3>)> = Vec::new();
@@ -32,7 +38,11 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(scene: R, settled: Option<S>) -> 
         if t.is_empty() || t.starts_with('#') || t.starts_with("params") {
             continue;
         }
-        let nums: Result<Vec<f64>, _> = t.split_whitespace().skip(usize::from(t.starts_with("box"))).map(str::parse::<f64>).collect();
+        let nums: Result<Vec<f64>, _> = t
+            .split_whitespace()
+            .skip(usize::from(t.starts_with("box")))
+            .map(str::parse::<f64>)
+            .collect();
         let nums = nums.map_err(|_| err(n, "expected numbers"))?;
         if !nums.iter().all(|x| x.is_finite()) {
             return Err(err(n, "a number is not finite"));
@@ -45,18 +55,35 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(scene: R, settled: Option<S>) -> 
             continue;
         }
         if nums.len() < 7 {
-            return Err(err(n, "a particle line needs id k deq x y z nv and vertices"));
+            return Err(err(
+                n,
+                "a particle line needs id k deq x y z nv and vertices",
+            ));
         }
         let id = nums[0] as usize;
         if id != particles.len() {
-            return Err(err(n, format!("particle id {id} out of order (expected {})", particles.len())));
+            return Err(err(
+                n,
+                format!(
+                    "particle id {id} out of order (expected {})",
+                    particles.len()
+                ),
+            ));
         }
         let nv = nums[6] as usize;
         if nums.len() != 7 + 3 * nv || nv < 4 {
-            return Err(err(n, format!("particle {id} says {nv} vertices but the line holds {} numbers after nv", nums.len() - 7)));
+            return Err(err(
+                n,
+                format!(
+                    "particle {id} says {nv} vertices but the line holds {} numbers after nv",
+                    nums.len() - 7
+                ),
+            ));
         }
         let centre = Vec3::new(nums[3], nums[4], nums[5]);
-        let verts = (0..nv).map(|i| Vec3::new(nums[7 + 3 * i], nums[8 + 3 * i], nums[9 + 3 * i])).collect();
+        let verts = (0..nv)
+            .map(|i| Vec3::new(nums[7 + 3 * i], nums[8 + 3 * i], nums[9 + 3 * i]))
+            .collect();
         particles.push((centre, verts));
     }
     let size = boxed.ok_or("the scene has no 'box Lx Ly Lz' line")?;
@@ -68,7 +95,10 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(scene: R, settled: Option<S>) -> 
         (Vec3::new(0.0, size.y, 0.0), -Vec3::y()),
     ];
     world.walls = walls.iter().map(|&(p, n)| PlaneWall::new(p, n)).collect();
-    let mut poses: Vec<(Vec3, UnitQuaternion<f64>)> = particles.iter().map(|(c, _)| (*c, UnitQuaternion::identity())).collect();
+    let mut poses: Vec<(Vec3, UnitQuaternion<f64>)> = particles
+        .iter()
+        .map(|(c, _)| (*c, UnitQuaternion::identity()))
+        .collect();
     if let Some(settled) = settled {
         let mut seen = 0;
         for (k, line) in settled.lines().enumerate() {
@@ -78,16 +108,26 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(scene: R, settled: Option<S>) -> 
             if t.is_empty() || t.starts_with('#') {
                 continue;
             }
-            let v: Vec<f64> = t.split_whitespace().map(str::parse::<f64>).collect::<Result<_, _>>().map_err(|_| err(n, "settled state: expected numbers"))?;
+            let v: Vec<f64> = t
+                .split_whitespace()
+                .map(str::parse::<f64>)
+                .collect::<Result<_, _>>()
+                .map_err(|_| err(n, "settled state: expected numbers"))?;
             if v.len() != 8 || v[0] as usize >= poses.len() {
-                return Err(err(n, "settled state: expected 'id x y z qw qx qy qz' for a known id"));
+                return Err(err(
+                    n,
+                    "settled state: expected 'id x y z qw qx qy qz' for a known id",
+                ));
             }
             let q = UnitQuaternion::new_normalize(Quaternion::new(v[4], v[5], v[6], v[7]));
             poses[v[0] as usize] = (Vec3::new(v[1], v[2], v[3]), q);
             seen += 1;
         }
         if seen != poses.len() {
-            return Err(format!("settled state gives {seen} particles, the scene has {}", poses.len()));
+            return Err(format!(
+                "settled state gives {seen} particles, the scene has {}",
+                poses.len()
+            ));
         }
     }
     for (i, ((_, verts), (centre, q))) in particles.iter().zip(&poses).enumerate() {
@@ -119,7 +159,10 @@ mod tests {
         let posed = w.shapes[0].posed(&b.pos, &b.rot, b.scale);
         // Every listed world vertex is a vertex of the posed body.
         for v in [Vec3::new(0.06, 0.05, 0.05), Vec3::new(0.045, 0.045, 0.045)] {
-            assert!(posed.vertices.iter().any(|p| (p - v).norm() < 1e-12), "{v} missing");
+            assert!(
+                posed.vertices.iter().any(|p| (p - v).norm() < 1e-12),
+                "{v} missing"
+            );
         }
     }
 
@@ -135,8 +178,16 @@ mod tests {
 
     #[test]
     fn bad_peer_input() {
-        assert!(read_peer_scene("0 4 0.01 0 0 0 4 1 2 3\n".as_bytes(), None::<&[u8]>).unwrap_err().contains("line 1"));
-        assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>).unwrap_err().contains("box needs"));
-        assert!(read_peer_scene("# nothing\n".as_bytes(), None::<&[u8]>).unwrap_err().contains("no 'box"));
+        assert!(
+            read_peer_scene("0 4 0.01 0 0 0 4 1 2 3\n".as_bytes(), None::<&[u8]>)
+                .unwrap_err()
+                .contains("line 1")
+        );
+        assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>)
+            .unwrap_err()
+            .contains("box needs"));
+        assert!(read_peer_scene("# nothing\n".as_bytes(), None::<&[u8]>)
+            .unwrap_err()
+            .contains("no 'box"));
     }
 }
