@@ -245,3 +245,74 @@ fn torque_free_asymmetric_body_conserves_and_flips() {
         "the intermediate axis flips (Dzhanibekov): {flips} flips"
     );
 }
+
+/// Test 2: an edge or a vertex of a cube hits a face of another (frictionless, undamped, no
+/// gravity): linear and angular momentum are conserved to round-off, energy within 1e-3.
+fn impact(rot_b: UnitQuaternion<f64>, offset: Vec3) -> (f64, f64, f64) {
+    let (mut w, s) = cube_world(frictionless_undamped(), Vec3::zeros());
+    let a = w.add_body(s, SIDE, Vec3::zeros(), UnitQuaternion::identity());
+    let b = w.add_body(s, SIDE, Vec3::new(0.0, 0.0, SIDE) + offset, rot_b);
+    w.bodies[a].vel = Vec3::new(0.0, 0.0, 0.05);
+    w.bodies[b].vel = Vec3::new(0.01, 0.0, -0.05);
+    w.dt = 0.01 * w.critical_dt();
+    let momentum = |w: &World| w.bodies.iter().map(|b| b.vel * b.mass).sum::<Vec3>();
+    let ang = |w: &World| {
+        w.bodies
+            .iter()
+            .map(|b| b.ang_mom + b.pos.cross(&(b.vel * b.mass)))
+            .sum::<Vec3>()
+    };
+    let energy = |w: &World| w.bodies.iter().map(|b| b.kinetic_energy()).sum::<f64>();
+    let (p0, l0, e0) = (momentum(&w), ang(&w), energy(&w));
+    let (mut touched, mut steps) = (false, 0);
+    loop {
+        w.step();
+        steps += 1;
+        touched |= !w.contacts.is_empty();
+        if touched && w.contacts.is_empty() {
+            break;
+        }
+        assert!(steps < 5_000_000, "no separation");
+    }
+    eprintln!("steps {steps}, spin after {:e}", w.bodies[b].omega().norm());
+    let scale_p = p0.norm().max(w.bodies[a].mass * 0.05);
+    (
+        (momentum(&w) - p0).norm() / scale_p,
+        (ang(&w) - l0).norm() / (scale_p * SIDE),
+        (energy(&w) / e0 - 1.0).abs(),
+    )
+}
+
+#[test]
+fn edge_and_vertex_impacts_conserve_momentum_and_energy() {
+    let edge = UnitQuaternion::from_axis_angle(&Vec3::x_axis(), std::f64::consts::FRAC_PI_4);
+    let vertex = UnitQuaternion::rotation_between(&Vec3::new(1.0, 1.0, 1.0), &Vec3::z()).unwrap();
+    let lift = |q: &UnitQuaternion<f64>| {
+        // Raise B so that its lowest point starts just above A's top face.
+        let lowest = [-1.0f64, 1.0]
+            .iter()
+            .flat_map(|&x| {
+                [-1.0f64, 1.0].iter().flat_map(move |&y| {
+                    [-1.0f64, 1.0]
+                        .iter()
+                        .map(move |&z| Vec3::new(x, y, z) * (SIDE / 2.0))
+                })
+            })
+            .map(|v| (q * v).z)
+            .fold(f64::INFINITY, f64::min);
+        Vec3::new(0.002, 0.001, -SIDE / 2.0 - lowest + 1e-6)
+    };
+    for (name, q) in [("edge", edge), ("vertex", vertex)] {
+        let (dp, dl, de) = impact(q, lift(&q));
+        eprintln!("{name}: momentum {dp:e}, angular momentum {dl:e}, energy {de:e}");
+        assert!(
+            dp < 1e-12,
+            "{name}: linear momentum changed by {dp:e} (relative)"
+        );
+        assert!(
+            dl < 1e-12,
+            "{name}: angular momentum changed by {dl:e} (relative)"
+        );
+        assert!(de < 1e-3, "{name}: energy changed by {de:e} (relative)");
+    }
+}

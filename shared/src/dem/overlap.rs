@@ -9,6 +9,9 @@
 //! vertex pushed into a face. The contact point is the centroid of `V`, so a face resting on a
 //! face carries no spurious moment.
 //!
+//! When one body lies inside the other, `S_B` vanishes; then the normal is the line of centroids
+//! and the depth the penetration along it, so even the deepest overlap pushes the bodies apart.
+//!
 //! Cost is kept near the contact: both bodies' faces are first clipped to the intersection of
 //! the two bounding boxes, and only the planes that cut that box are applied.
 
@@ -182,15 +185,48 @@ pub fn overlap(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed) -> Option<Overlap> 
     clip_faces(sa, a, b, &lo, &hi, false, &mut acc, size);
     clip_faces(sb, b, a, &lo, &hi, true, &mut acc, size);
     let volume = acc.volume6 / 6.0;
-    if volume.is_nan() || volume <= 0.0 || acc.area_b.norm_squared() == 0.0 {
+    if volume.is_nan() || volume <= 0.0 {
         return None;
     }
     let centroid = acc.reference + acc.moment24 / (4.0 * acc.volume6);
+    let mut area_b = acc.area_b;
+    if area_b.norm() <= SWALLOWED_REL * volume.powf(2.0 / 3.0) {
+        // One body (nearly) inside the other: S_B vanishes and gives no direction. Push apart
+        // along the line of centroids, by the penetration along it (separating-axis overlap).
+        area_b = swallowed(a, b, volume);
+    }
     Some(Overlap {
         volume,
         centroid,
-        area_b: acc.area_b,
+        area_b,
     })
+}
+
+/// Below this `|S_B| / V^(2/3)` one body is taken as swallowed by the other.
+const SWALLOWED_REL: f64 = 1e-9;
+
+/// The `S_B` that makes `normal()` the centroid-to-centroid direction and `depth()` the
+/// penetration along it, for an overlap of `volume` with one body inside the other.
+fn swallowed(a: &Posed, b: &Posed, volume: f64) -> Vec3 {
+    let mean = |p: &Posed| p.vertices.iter().sum::<Vec3>() / p.vertices.len() as f64;
+    let d = mean(b) - mean(a);
+    let n = if d.norm() > 0.0 {
+        d.normalize()
+    } else {
+        Vec3::z()
+    };
+    let reach_a = a
+        .vertices
+        .iter()
+        .map(|v| n.dot(v))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let start_b = b
+        .vertices
+        .iter()
+        .map(|v| n.dot(v))
+        .fold(f64::INFINITY, f64::min);
+    let depth = (reach_a - start_b).max(f64::MIN_POSITIVE);
+    -n * (volume / depth)
 }
 
 /// The overlap of a posed shape B with the solid half-space `n . x <= d` (a plane wall whose

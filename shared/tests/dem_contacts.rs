@@ -1,0 +1,227 @@
+//! Test 7 of issue "DEM engine": hard pairs. The overlap construction is checked against a
+//! brute-force separating-axis test on thousands of poses: no overlapping pair is reported as
+//! separated, no separated pair as overlapping, the normal never points from B back into A.
+
+use nalgebra::UnitQuaternion;
+use rand::{RngCore, SeedableRng};
+use shared::dem::overlap::overlap;
+use shared::dem::shape::{Posed, Shape};
+use shared::math::{unit_f64, Vec3};
+use shared::mesh::cube;
+use shared::polygen;
+
+/// Signed separation of two convex polyhedra by the separating-axis test over face normals and
+/// edge-edge cross products: > 0 separated by that gap, < 0 overlapping by at least that.
+fn sat_gap(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed) -> f64 {
+    let edges = |s: &Shape, p: &Posed| -> Vec<Vec3> {
+        (0..s.face_count())
+            .flat_map(|f| {
+                let idx = s.face(f);
+                (0..idx.len()).map(move |k| (idx[k], idx[(k + 1) % idx.len()]))
+            })
+            .filter(|(i, j)| i < j)
+            .map(|(i, j)| p.vertices[j as usize] - p.vertices[i as usize])
+            .collect()
+    };
+    let mut axes: Vec<Vec3> = a.normals.iter().chain(&b.normals).copied().collect();
+    for ea in edges(sa, a) {
+        for eb in edges(sb, b) {
+            let c = ea.cross(&eb);
+            if c.norm() > 1e-9 * ea.norm() * eb.norm() {
+                axes.push(c.normalize());
+            }
+        }
+    }
+    axes.iter()
+        .map(|n| {
+            let (mina, maxa) = a
+                .vertices
+                .iter()
+                .map(|v| n.dot(v))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
+                    (l.min(x), h.max(x))
+                });
+            let (minb, maxb) = b
+                .vertices
+                .iter()
+                .map(|v| n.dot(v))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
+                    (l.min(x), h.max(x))
+                });
+            (minb - maxa).max(mina - maxb)
+        })
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+fn shapes() -> Vec<(Shape, f64)> {
+    let mut out = vec![(Shape::from_mesh(&cube(0.5)).unwrap(), 0.02)];
+    for (k, size) in [(6, 0.01), (9, 0.04), (14, 0.025), (8, 0.01)] {
+        let p = polygen::generate(
+            &polygen::Params {
+                faces: k,
+                ..Default::default()
+            },
+            3,
+            0,
+        )
+        .unwrap();
+        out.push((Shape::from_mesh(&p.mesh).unwrap(), size / 2.0));
+    }
+    out
+}
+
+fn random_rotation(rng: &mut impl RngCore) -> UnitQuaternion<f64> {
+    let mut u = || unit_f64(rng.next_u64()) * std::f64::consts::TAU;
+    UnitQuaternion::from_euler_angles(u(), u(), u())
+}
+
+#[test]
+fn random_poses_agree_with_the_separating_axis_test() {
+    let shapes = shapes();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(42);
+    let (mut overlapping, mut separated, mut deep) = (0, 0, 0);
+    for trial in 0..6000 {
+        let (sa, ka) = &shapes[trial % shapes.len()];
+        let (sb, kb) = &shapes[(trial / shapes.len()) % shapes.len()];
+        let a = sa.posed(&Vec3::zeros(), &random_rotation(&mut rng), *ka);
+        let reach = sa.radius * ka + sb.radius * kb;
+        let dir = Vec3::new(
+            unit_f64(rng.next_u64()) - 0.5,
+            unit_f64(rng.next_u64()) - 0.5,
+            unit_f64(rng.next_u64()) - 0.5,
+        )
+        .normalize();
+        let dist = reach * unit_f64(rng.next_u64());
+        let b = sb.posed(&(dir * dist), &random_rotation(&mut rng), *kb);
+        let gap = sat_gap(sa, &a, sb, &b);
+        let size = (sa.radius * ka).min(sb.radius * kb);
+        let o = overlap(sa, &a, sb, &b);
+        if gap < -1e-9 * size {
+            overlapping += 1;
+            let o = o.unwrap_or_else(|| {
+                panic!(
+                    "trial {trial}: overlapping by {} but reported separated",
+                    -gap
+                )
+            });
+            let n = o.normal();
+            assert!((n.norm() - 1.0).abs() < 1e-12 && o.volume > 0.0 && o.depth() > 0.0);
+            if -gap > 0.3 * size {
+                deep += 1;
+            } else {
+                // Shallow: the normal points from A towards B (the side B is on along n).
+                let (ca, cb) = (
+                    a.vertices.iter().sum::<Vec3>() / a.vertices.len() as f64,
+                    b.vertices.iter().sum::<Vec3>() / b.vertices.len() as f64,
+                );
+                let support_a = a
+                    .vertices
+                    .iter()
+                    .map(|v| n.dot(v))
+                    .fold(f64::NEG_INFINITY, f64::max);
+                let support_b = b
+                    .vertices
+                    .iter()
+                    .map(|v| n.dot(v))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    support_b < support_a,
+                    "trial {trial}: along n, B must start inside A's extent"
+                );
+                assert!(
+                    n.dot(&(cb - ca)) > -0.5 * (cb - ca).norm(),
+                    "trial {trial}: normal flipped"
+                );
+            }
+        } else if gap > 1e-9 * size {
+            separated += 1;
+            assert!(
+                o.is_none(),
+                "trial {trial}: separated by {gap} but reported overlapping"
+            );
+        }
+    }
+    assert!(
+        overlapping > 1000 && separated > 1000 && deep > 50,
+        "{overlapping} overlapping ({deep} deep), {separated} separated"
+    );
+}
+
+#[test]
+fn named_hard_pairs() {
+    let c = Shape::from_mesh(&cube(0.5)).unwrap();
+    let id = UnitQuaternion::identity();
+    let at = |p: Vec3, q: UnitQuaternion<f64>, s: f64| c.posed(&p, &q, s);
+    let a = at(Vec3::zeros(), id, 1.0);
+    let cases: Vec<(&str, Posed, bool)> = vec![
+        (
+            "exactly parallel faces, touching",
+            at(Vec3::new(1.0, 0.3, 0.2), id, 1.0),
+            false,
+        ),
+        (
+            "exactly parallel faces, 1e-9 deep",
+            at(Vec3::new(1.0 - 1e-9, 0.3, 0.2), id, 1.0),
+            true,
+        ),
+        (
+            "coincident edges, 1e-9 deep",
+            at(Vec3::new(1.0 - 1e-9, 1.0 - 1e-9, 0.0), id, 1.0),
+            true,
+        ),
+        (
+            "vertex on vertex, 1e-9 deep",
+            at(Vec3::new(1.0 - 1e-9, 1.0 - 1e-9, 1.0 - 1e-9), id, 1.0),
+            true,
+        ),
+        (
+            "vertex on vertex, 1e-9 apart",
+            at(Vec3::new(1.0 + 1e-9, 1.0 + 1e-9, 1.0 + 1e-9), id, 1.0),
+            false,
+        ),
+        (
+            "small against large (1:4)",
+            at(Vec3::new(0.5 + 0.125 - 1e-6, 0.1, -0.2), id, 0.25),
+            true,
+        ),
+        (
+            "deep overlap: half a size",
+            at(
+                Vec3::new(0.5, 0.0, 0.0),
+                UnitQuaternion::from_euler_angles(0.3, 0.2, 0.1),
+                1.0,
+            ),
+            true,
+        ),
+        (
+            "small one almost swallowed",
+            at(Vec3::new(0.4, 0.0, 0.0), id, 0.25),
+            true,
+        ),
+        (
+            "small one wholly inside (S_B = 0)",
+            at(Vec3::new(0.1, 0.02, 0.0), id, 0.25),
+            true,
+        ),
+    ];
+    for (name, b, expect) in cases {
+        let o = overlap(&c, &a, &c, &b);
+        assert_eq!(o.is_some(), expect, "{name}");
+        if let Some(o) = o {
+            let n = o.normal();
+            assert!(
+                n.iter().all(|x| x.is_finite()) && (n.norm() - 1.0).abs() < 1e-12,
+                "{name}: normal {n}"
+            );
+            assert!(
+                n.x > 0.0,
+                "{name}: the normal points from A (at the origin) towards B (+x): {n}"
+            );
+            assert!(
+                o.depth() > 0.0 && o.depth().is_finite(),
+                "{name}: depth {}",
+                o.depth()
+            );
+        }
+    }
+}
