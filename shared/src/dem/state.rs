@@ -50,14 +50,7 @@ pub enum Record {
         version: u32,
         units: String,
     },
-    Material {
-        density: f64,
-        kn: f64,
-        ks: f64,
-        friction: f64,
-        wall_friction: f64,
-        damping: f64,
-    },
+    Material(Material),
     Clock {
         time: f64,
         step: u64,
@@ -223,14 +216,15 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
         }
         match rec {
             Record::Header { .. } => return Err(at(n, "a second header")),
-            Record::Material {
-                density,
-                kn,
-                ks,
-                friction,
-                wall_friction,
-                damping,
-            } => {
+            Record::Material(m) => {
+                let Material {
+                    density,
+                    kn,
+                    ks,
+                    friction,
+                    wall_friction,
+                    damping,
+                } = m;
                 finite(
                     n,
                     "material",
@@ -245,14 +239,7 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 {
                     return Err(at(n, "material: density and kn must be positive, ks, frictions >= 0, damping in [0, 1)"));
                 }
-                world.material = Material {
-                    density,
-                    kn,
-                    ks,
-                    friction,
-                    wall_friction,
-                    damping,
-                };
+                world.material = m;
                 material_seen = true;
             }
             Record::Clock {
@@ -540,15 +527,7 @@ pub fn write_world<W: Write>(world: &World, mut out: W) -> std::io::Result<()> {
         version: VERSION,
         units: "SI".into(),
     })?;
-    let m = &world.material;
-    line(&Record::Material {
-        density: m.density,
-        kn: m.kn,
-        ks: m.ks,
-        friction: m.friction,
-        wall_friction: m.wall_friction,
-        damping: m.damping,
-    })?;
+    line(&Record::Material(world.material))?;
     line(&Record::Clock {
         time: world.time,
         step: world.step,

@@ -28,7 +28,8 @@ use rayon::prelude::*;
 use std::collections::BTreeMap;
 
 /// Material and contact parameters (SI units). Defaults are the paper's Table 1.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Material {
     /// kg/m^3
     pub density: f64,
