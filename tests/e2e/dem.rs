@@ -120,3 +120,33 @@ fn bad_scenes_and_arguments() {
         &["opening /nonexistent/scene.txt"],
     );
 }
+
+#[test]
+fn vtk_snapshots_and_collections() {
+    let dir = std::env::temp_dir().join(format!("dem-vtk-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    ok(
+        "dem",
+        &[
+            "--steps",
+            "3000",
+            "--vtk",
+            dir.to_str().unwrap(),
+            "--vtk-every",
+            "1000",
+        ],
+        &repo_file("examples/drop.jsonl"),
+    );
+    for stream in ["particles", "contacts", "walls"] {
+        let pvd = std::fs::read_to_string(dir.join(format!("{stream}.pvd"))).unwrap();
+        // One snapshot at the start and one every 1000 steps: 4 in all.
+        assert_eq!(pvd.matches("<DataSet").count(), 4, "{pvd}");
+        for k in 0..4 {
+            let vtu = std::fs::read_to_string(dir.join(format!("{stream}_{k:06}.vtu"))).unwrap();
+            assert!(vtu.starts_with("<?xml") && vtu.trim_end().ends_with("</VTKFile>"));
+        }
+    }
+    let p = std::fs::read_to_string(dir.join("particles_000000.vtu")).unwrap();
+    assert!(p.contains("Name=\"id\"") && p.contains("Name=\"velocity\""));
+    let _ = std::fs::remove_dir_all(&dir);
+}

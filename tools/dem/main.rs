@@ -13,6 +13,8 @@ Examples:
   dem --steps 20000 < examples/drop.jsonl > settled.jsonl
   dem --steps 1000 < settled.jsonl | dem --steps 1000 > a.jsonl   (same bytes as --steps 2000)
   dem --import-peer ../shared/peers/yade/scene_500.txt --steps 0 > scene500.jsonl
+  dem --time 0.3 --vtk out/drop --vtk-every 20000 < examples/drop.jsonl > /dev/null
+      then open out/drop/particles.pvd (and contacts.pvd, walls.pvd) in ParaView
 
 Scene format (JSON lines, version 1, SI units; docs/dem-state.md): a header, then records
   {\"type\":\"header\",\"format\":\"granular-dem\",\"version\":1,\"units\":\"SI\"}
@@ -47,6 +49,13 @@ struct Cli {
     /// Steps between time-series lines
     #[arg(long, default_value_t = 100)]
     every: u64,
+    /// Write VTK snapshots (particles, contacts, walls as .vtu, and .pvd collections for
+    /// ParaView) into DIR: one at the start, then every --vtk-every steps and at the end
+    #[arg(long)]
+    vtk: Option<std::path::PathBuf>,
+    /// Steps between VTK snapshots
+    #[arg(long, default_value_t = 10_000)]
+    vtk_every: u64,
     /// Read a peer-scene v1 file (Yade benchmark format) instead of standard input
     #[arg(long)]
     import_peer: Option<std::path::PathBuf>,
@@ -144,6 +153,19 @@ fn run(args: Cli) -> anyhow::Result<()> {
         )),
         None => None,
     };
+    if args.vtk_every == 0 {
+        bail!("--vtk-every must be at least 1");
+    }
+    let mut snapshots = match &args.vtk {
+        Some(dir) => {
+            let mut s = shared::dem::vtk::Snapshots::new(dir)
+                .with_context(|| format!("creating {}", dir.display()))?;
+            s.write(&world)
+                .with_context(|| format!("writing VTK into {}", dir.display()))?;
+            Some(s)
+        }
+        None => None,
+    };
     let mut progress = cli::Progress::new("dem");
     let start = std::time::Instant::now();
     for k in 0..steps {
@@ -152,6 +174,11 @@ fn run(args: Cli) -> anyhow::Result<()> {
             if (k + 1) % args.every == 0 || k + 1 == steps {
                 serde_json::to_writer(&mut *s, &series_line(&world))?;
                 s.write_all(b"\n")?;
+            }
+        }
+        if let Some(s) = snapshots.as_mut() {
+            if (k + 1) % args.vtk_every == 0 || k + 1 == steps {
+                s.write(&world).context("writing a VTK snapshot")?;
             }
         }
         progress.tick(k + 1, "steps");

@@ -5,9 +5,11 @@
 //! - [`world`]: bodies, walls, the contact law, the integrator and the energy audit.
 //! - [`state`]: scenes and restartable states as JSON lines.
 //! - [`peer`]: the Yade peer benchmark's scene format.
+//! - [`vtk`]: snapshots for ParaView.
 
 pub mod overlap;
 pub mod peer;
 pub mod shape;
 pub mod state;
+pub mod vtk;
 pub mod world;
