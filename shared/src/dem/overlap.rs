@@ -152,7 +152,17 @@ fn clip_faces(
         }
         poly.clear();
         poly.extend(idx.iter().map(|&i| x.vertices[i as usize]));
+        // The face's own box: a half-space that holds it changes nothing; one that misses it
+        // leaves nothing. Either way no clipping is needed.
+        let (mut flo, mut fhi) = (poly[0], poly[0]);
+        for p in &poly[1..] {
+            flo = flo.inf(p);
+            fhi = fhi.sup(p);
+        }
         for (bn, bd) in &bounds {
+            if box_excess(bn, *bd, &flo, &fhi) <= 0.0 {
+                continue;
+            }
             clip(&poly, bn, *bd, &mut tmp);
             std::mem::swap(&mut poly, &mut tmp);
             if poly.len() < 3 {
@@ -160,7 +170,14 @@ fn clip_faces(
             }
         }
         for &j in &cutting {
-            clip(&poly, &y.normals[j], y.offsets[j], &mut tmp);
+            let (n, d) = (&y.normals[j], y.offsets[j]);
+            if box_excess(n, d, &flo, &fhi) <= 0.0 {
+                continue;
+            }
+            if box_excess(&-n, -d, &flo, &fhi) < 0.0 {
+                continue 'faces; // the whole face is outside this half-space
+            }
+            clip(&poly, n, d, &mut tmp);
             std::mem::swap(&mut poly, &mut tmp);
             if poly.len() < 3 {
                 continue 'faces;
