@@ -506,11 +506,9 @@ mod tests {
     }
 
     fn check_hull(pts: &[Vec3], h: &Hull) {
-        let topo = h
-            .mesh
+        h.mesh
             .topology(None)
             .expect("hull is a closed oriented manifold");
-        let _ = topo;
         assert_eq!(h.mesh.euler_characteristic(), 2);
         let tol = 1e-9 * extent(pts);
         for (f, (n, d)) in h.planes.iter().enumerate() {

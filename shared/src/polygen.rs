@@ -290,8 +290,7 @@ mod tests {
     /// Checks the promises: k planar faces in the tangent planes, closed oriented convex
     /// manifold, no duplicated vertices, no zero-area face.
     fn check(mesh: &PolyMesh, points: &[Vec3], r: f64) {
-        let topo = mesh.topology(None).expect("closed oriented manifold");
-        let _ = topo;
+        mesh.topology(None).expect("closed oriented manifold");
         assert_eq!(mesh.face_count(), points.len());
         assert_eq!(mesh.euler_characteristic(), 2);
         let scale = mesh.vertices.iter().map(|v| v.norm()).fold(r, f64::max);

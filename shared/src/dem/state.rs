@@ -332,7 +332,7 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
         return Err(at(last_line, "no material record"));
     }
     for (n, b) in pending_bodies {
-        let shape = world.shapes.get(b.shape as usize).ok_or_else(|| {
+        world.shapes.get(b.shape as usize).ok_or_else(|| {
             at(
                 n,
                 format!(
@@ -341,7 +341,6 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 ),
             )
         })?;
-        let _ = shape;
         finite(
             n,
             "body",
@@ -426,10 +425,7 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
     world.energy.elastic = world
         .contacts
         .values()
-        .map(|c| {
-            0.5 * c.normal_force.powi(2) / world.material.kn
-                + 0.5 * c.shear.norm_squared() / world.material.ks.max(f64::MIN_POSITIVE)
-        })
+        .map(|c| c.elastic_energy(&world.material))
         .sum();
     check_fixed_overlaps(&world)?;
     Ok(world)

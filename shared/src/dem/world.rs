@@ -142,6 +142,19 @@ pub struct Contact {
     pub sliding: bool,
 }
 
+impl Contact {
+    /// Energy stored in the normal and shear springs: `Fn^2 / 2kn + |Fs|^2 / 2ks` (no shear term
+    /// without a shear spring).
+    pub fn elastic_energy(&self, m: &Material) -> f64 {
+        let shear = if m.ks > 0.0 {
+            0.5 * self.shear.norm_squared() / m.ks
+        } else {
+            0.0
+        };
+        0.5 * self.normal_force.powi(2) / m.kn + shear
+    }
+}
+
 /// Key of a contact: (partner, body), the body being B (the normal points to it). For body pairs
 /// the partner has the lower index.
 pub type ContactKey = (Partner, u32);
@@ -416,8 +429,7 @@ impl World {
                     wall_power += t.force.dot(&wall.velocity);
                 }
             }
-            elastic += 0.5 * t.contact.normal_force.powi(2) / self.material.kn
-                + 0.5 * t.contact.shear.norm_squared() / self.material.ks;
+            elastic += t.contact.elastic_energy(&self.material);
             self.energy.friction += t.slip_energy;
             contacts.insert(t.key, t.contact);
         }
