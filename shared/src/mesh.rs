@@ -335,12 +335,19 @@ impl PolyMesh {
 
 /// A cube with half-width `h` centred at the origin (6 quads, outward).
 pub fn cube(h: f64) -> PolyMesh {
+    let mut m = cuboid(Vec3::new(h, h, h));
+    m.name = "cube".into();
+    m
+}
+
+/// A box with half-widths `h` centred at the origin (6 quads, outward).
+pub fn cuboid(h: Vec3) -> PolyMesh {
     let v = (0..8)
         .map(|i| {
             Vec3::new(
-                if i & 1 == 1 { h } else { -h },
-                if i & 2 == 2 { h } else { -h },
-                if i & 4 == 4 { h } else { -h },
+                if i & 1 == 1 { h.x } else { -h.x },
+                if i & 2 == 2 { h.y } else { -h.y },
+                if i & 4 == 4 { h.z } else { -h.z },
             )
         })
         .collect();
@@ -352,7 +359,7 @@ pub fn cube(h: f64) -> PolyMesh {
         vec![0, 4, 6, 2],
         vec![1, 3, 7, 5],
     ];
-    PolyMesh::from_faces("cube", v, &faces)
+    PolyMesh::from_faces("cuboid", v, &faces)
 }
 
 #[cfg(test)]
