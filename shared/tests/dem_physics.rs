@@ -3,7 +3,8 @@
 
 use nalgebra::UnitQuaternion;
 use shared::dem::shape::Shape;
-use shared::dem::world::{Material, PlaneWall, World};
+use shared::dem::wall::Wall;
+use shared::dem::world::{Material, World};
 use shared::math::Vec3;
 use shared::mesh::{cube, cuboid};
 
@@ -85,7 +86,7 @@ fn resting_cube(w: &mut World, s: u32, z_base: f64) -> usize {
 #[test]
 fn cube_resting_on_a_plane_overlap_no_rotation_no_drift() {
     let (mut w, s) = cube_world(Material::default(), Vec3::new(0.0, 0.0, -9.81));
-    w.walls.push(PlaneWall::new(Vec3::zeros(), Vec3::z()));
+    w.walls.push(Wall::plane(Vec3::zeros(), Vec3::z()));
     let i = resting_cube(&mut w, s, 0.0);
     w.dt = 0.2 * w.critical_dt();
     let start = w.bodies[i].pos;
@@ -112,7 +113,7 @@ fn cube_resting_on_a_plane_overlap_no_rotation_no_drift() {
 #[test]
 fn stack_of_five_cubes_stays_put() {
     let (mut w, s) = cube_world(Material::default(), Vec3::new(0.0, 0.0, -9.81));
-    w.walls.push(PlaneWall::new(Vec3::zeros(), Vec3::z()));
+    w.walls.push(Wall::plane(Vec3::zeros(), Vec3::z()));
     let m = w.material.density * SIDE.powi(3);
     let mut z = 0.0;
     for level in 0..5 {
@@ -159,7 +160,7 @@ fn incline(h: f64, theta: f64, mu: f64, damping: f64, ramp: f64, t: f64) -> (f64
     };
     let mut w = World::new(material, Vec3::new(0.0, 0.0, -g));
     let s = w.add_shape(Shape::from_mesh(&cuboid(Vec3::new(0.5, 0.5, h / 2.0))).unwrap());
-    w.walls.push(PlaneWall::new(Vec3::zeros(), Vec3::z()));
+    w.walls.push(Wall::plane(Vec3::zeros(), Vec3::z()));
     let m = w.material.density * SIDE.powi(3) * h;
     let sink = m * g / w.material.kn;
     let i = w.add_body(

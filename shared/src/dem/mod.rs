@@ -6,10 +6,12 @@
 //! - [`state`]: scenes and restartable states as JSON lines.
 //! - [`peer`]: the Yade peer benchmark's scene format.
 //! - [`vtk`]: snapshots for ParaView.
+//! - [`wall`]: planes, facets with moving nodes, cylinders.
 
 pub mod overlap;
 pub mod peer;
 pub mod shape;
 pub mod state;
 pub mod vtk;
+pub mod wall;
 pub mod world;

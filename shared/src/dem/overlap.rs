@@ -46,14 +46,16 @@ struct Acc {
     volume6: f64,
     moment24: Vec3,
     area_b: Vec3,
+    /// Area vector of A's first face inside B (outward from A): a wall facet's cap.
+    cap_a: Vec3,
 }
 
 impl Acc {
     /// A piece of the boundary, counter-clockwise seen from outside `A ∩ B`; `on_b` when it lies
     /// on B's surface.
-    fn piece(&mut self, poly: &[Vec3], on_b: bool) {
+    fn piece(&mut self, poly: &[Vec3], on_b: bool) -> Vec3 {
         if poly.len() < 3 {
-            return;
+            return Vec3::zeros();
         }
         let o = self.reference;
         let a = poly[0] - o;
@@ -68,6 +70,7 @@ impl Acc {
         if on_b {
             self.area_b += area * 0.5;
         }
+        area * 0.5
     }
 }
 
@@ -191,12 +194,32 @@ fn clip_faces(
                 continue 'faces;
             }
         }
-        acc.piece(&poly, x_is_b);
+        let area = acc.piece(&poly, x_is_b);
+        if !x_is_b && f == 0 {
+            acc.cap_a = area;
+        }
     }
 }
 
 /// The overlap of posed shapes A and B, or `None` when they do not overlap (zero volume).
 pub fn overlap(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed) -> Option<Overlap> {
+    let (mut o, _) = overlap_parts(sa, a, sb, b)?;
+    if o.area_b.norm() <= SWALLOWED_REL * o.volume.powf(2.0 / 3.0) {
+        // One body (nearly) inside the other: S_B vanishes and gives no direction. Push apart
+        // along the line of centroids, by the penetration along it (separating-axis overlap).
+        o.area_b = swallowed(a, b, o.volume);
+    }
+    Some(o)
+}
+
+/// The overlap polyhedron's volume, centroid and `S_B`, and the area vector of A's first face
+/// inside B (outward from A); `None` for no volume.
+pub(crate) fn overlap_parts(
+    sa: &Shape,
+    a: &Posed,
+    sb: &Shape,
+    b: &Posed,
+) -> Option<(Overlap, Vec3)> {
     let lo = a.lo.sup(&b.lo);
     let hi = a.hi.inf(&b.hi);
     if lo.x >= hi.x || lo.y >= hi.y || lo.z >= hi.z {
@@ -218,17 +241,14 @@ pub fn overlap(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed) -> Option<Overlap> 
         return None;
     }
     let centroid = acc.reference + acc.moment24 / (4.0 * acc.volume6);
-    let mut area_b = acc.area_b;
-    if area_b.norm() <= SWALLOWED_REL * volume.powf(2.0 / 3.0) {
-        // One body (nearly) inside the other: S_B vanishes and gives no direction. Push apart
-        // along the line of centroids, by the penetration along it (separating-axis overlap).
-        area_b = swallowed(a, b, volume);
-    }
-    Some(Overlap {
-        volume,
-        centroid,
-        area_b,
-    })
+    Some((
+        Overlap {
+            volume,
+            centroid,
+            area_b: acc.area_b,
+        },
+        acc.cap_a,
+    ))
 }
 
 /// Below this `|S_B| / V^(2/3)` one body is taken as swallowed by the other.
@@ -276,7 +296,7 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
         poly.clear();
         poly.extend(sb.face(f).iter().map(|&i| b.vertices[i as usize]));
         clip(&poly, n, d, &mut tmp);
-        acc.piece(&tmp, true);
+        let _ = acc.piece(&tmp, true);
     }
     let volume = acc.volume6 / 6.0;
     if volume.is_nan() || volume <= 0.0 {

@@ -9,7 +9,8 @@
 //! 0.3, gravity 9.81 down; our linear law uses the paper's kn = 1e8 N/m, ks = 5e7 N/m.
 
 use super::shape::Shape;
-use super::world::{Material, PlaneWall, World};
+use super::wall::Wall;
+use super::world::{Material, World};
 use crate::hull;
 use crate::math::Vec3;
 use nalgebra::{Quaternion, UnitQuaternion};
@@ -94,7 +95,7 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
         (Vec3::zeros(), Vec3::y()),
         (Vec3::new(0.0, size.y, 0.0), -Vec3::y()),
     ];
-    world.walls = walls.iter().map(|&(p, n)| PlaneWall::new(p, n)).collect();
+    world.walls = walls.iter().map(|&(p, n)| Wall::plane(p, n)).collect();
     let mut poses: Vec<(Vec3, UnitQuaternion<f64>)> = particles
         .iter()
         .map(|(c, _)| (*c, UnitQuaternion::identity()))

@@ -10,7 +10,8 @@
 //! `docs/dem-state.md`.
 
 use super::shape::Shape;
-use super::world::{Body, Contact, Energy, Material, Partner, PlaneWall, World};
+use super::wall::{Wall, WallKind};
+use super::world::{Body, Contact, Energy, Material, Partner, World};
 use crate::math::Vec3;
 use crate::mesh::PolyMesh;
 use nalgebra::{Quaternion, UnitQuaternion};
@@ -118,18 +119,226 @@ fn identity() -> [f64; 4] {
     [1.0, 0.0, 0.0, 0.0]
 }
 
-/// A plane wall: solid where `normal . x <= offset`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
+/// A wall. `kind` "plane": `normal` (unit), `offset` (solid where normal . x <= offset);
+/// "facets": `nodes`, `triangles` (counter-clockwise seen from the particles' side), optional
+/// `node_velocities` (and `node_forces`, written by `dem`); "cylinder": `point`, `axis` (unit),
+/// `radius`, `height`, `segments` (flat facets inscribed in the circle), optional `radial_rate`.
+/// Every kind: optional `velocity` (a rigid motion) and `force` (written by `dem`).
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct WallRecord {
     pub id: u32,
     pub kind: String,
-    pub normal: [f64; 3],
-    pub offset: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normal: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub offset: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nodes: Option<Vec<[f64; 3]>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub triangles: Option<Vec<[u32; 3]>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub node_velocities: Option<Vec<[f64; 3]>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub node_forces: Option<Vec<[f64; 3]>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub segments: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radial_rate: Option<f64>,
     #[serde(default)]
     pub velocity: [f64; 3],
     #[serde(default)]
     pub force: [f64; 3],
+}
+
+impl WallRecord {
+    fn from_wall(id: u32, w: &Wall) -> WallRecord {
+        let mut r = WallRecord {
+            id,
+            velocity: a3(&w.velocity),
+            force: a3(&w.force),
+            ..Default::default()
+        };
+        match &w.kind {
+            WallKind::Plane { normal, offset } => {
+                r.kind = "plane".into();
+                r.normal = Some(a3(normal));
+                r.offset = Some(*offset);
+            }
+            WallKind::Facets {
+                nodes,
+                triangles,
+                node_velocities,
+                node_forces,
+            } => {
+                r.kind = "facets".into();
+                r.nodes = Some(nodes.iter().map(a3).collect());
+                r.triangles = Some(triangles.clone());
+                r.node_velocities = Some(node_velocities.iter().map(a3).collect());
+                r.node_forces = Some(node_forces.iter().map(a3).collect());
+            }
+            WallKind::Cylinder {
+                point,
+                axis,
+                radius,
+                height,
+                segments,
+                radial_rate,
+            } => {
+                r.kind = "cylinder".into();
+                r.point = Some(a3(point));
+                r.axis = Some(a3(axis));
+                r.radius = Some(*radius);
+                r.height = Some(*height);
+                r.segments = Some(*segments);
+                r.radial_rate = Some(*radial_rate);
+            }
+        }
+        r
+    }
+
+    /// The wall, or what is wrong with the record.
+    fn to_wall(&self) -> Result<Wall, String> {
+        fn need<T: Clone>(v: &Option<T>, kind: &str, field: &str) -> Result<T, String> {
+            v.clone()
+                .ok_or_else(|| format!("a {kind} wall needs '{field}'"))
+        }
+        fn all_finite<'a>(what: &str, xs: impl IntoIterator<Item = &'a f64>) -> Result<(), String> {
+            match xs.into_iter().find(|x| !x.is_finite()) {
+                Some(x) => Err(format!("wall {what} is not finite ({x})")),
+                None => Ok(()),
+            }
+        }
+        fn unit(v: &[f64; 3], what: &str) -> Result<Vec3, String> {
+            let n = v3(v).norm();
+            if (n - 1.0).abs() > 1e-9 {
+                return Err(format!("wall {what} has length {n}, not 1"));
+            }
+            Ok(v3(v))
+        }
+        all_finite("velocity", &self.velocity)?;
+        let kind = self.kind.as_str();
+        let others: Vec<&str> = [
+            ("normal", self.normal.is_some()),
+            ("offset", self.offset.is_some()),
+            ("nodes", self.nodes.is_some()),
+            ("triangles", self.triangles.is_some()),
+            ("node_velocities", self.node_velocities.is_some()),
+            ("node_forces", self.node_forces.is_some()),
+            ("point", self.point.is_some()),
+            ("axis", self.axis.is_some()),
+            ("radius", self.radius.is_some()),
+            ("height", self.height.is_some()),
+            ("segments", self.segments.is_some()),
+            ("radial_rate", self.radial_rate.is_some()),
+        ]
+        .into_iter()
+        .filter(|(_, set)| *set)
+        .map(|(name, _)| name)
+        .collect();
+        let allowed: &[&str] = match kind {
+            "plane" => &["normal", "offset"],
+            "facets" => &["nodes", "triangles", "node_velocities", "node_forces"],
+            "cylinder" => &["point", "axis", "radius", "height", "segments", "radial_rate"],
+            _ => {
+                return Err(format!(
+                    "wall kind '{kind}' is not known (plane, facets, cylinder)"
+                ))
+            }
+        };
+        if let Some(f) = others.iter().find(|f| !allowed.contains(f)) {
+            return Err(format!("a {kind} wall has no field '{f}'"));
+        }
+        let wall_kind = match kind {
+            "plane" => {
+                let normal = need(&self.normal, kind, "normal")?;
+                let offset = need(&self.offset, kind, "offset")?;
+                all_finite("normal", normal.iter().chain([&offset]))?;
+                WallKind::Plane {
+                    normal: unit(&normal, "normal")?,
+                    offset,
+                }
+            }
+            "facets" => {
+                let nodes = need(&self.nodes, kind, "nodes")?;
+                let triangles = need(&self.triangles, kind, "triangles")?;
+                all_finite("node", nodes.iter().flatten())?;
+                let nodes: Vec<Vec3> = nodes.iter().map(v3).collect();
+                for (k, t) in triangles.iter().enumerate() {
+                    if let Some(i) = t.iter().find(|&&i| i as usize >= nodes.len()) {
+                        return Err(format!(
+                            "triangle {k} uses node {i}, but there are {} nodes",
+                            nodes.len()
+                        ));
+                    }
+                    let [a, b, c] = t.map(|i| nodes[i as usize]);
+                    let area = (b - a).cross(&(c - a)).norm();
+                    if area.is_nan() || area <= 1e-12 * (b - a).norm_squared().max((c - a).norm_squared()) {
+                        return Err(format!("triangle {k} has no area"));
+                    }
+                }
+                let per_node = |v: &Option<Vec<[f64; 3]>>, what: &str| match v {
+                    None => Ok(vec![Vec3::zeros(); nodes.len()]),
+                    Some(v) if v.len() == nodes.len() => {
+                        all_finite(what, v.iter().flatten())?;
+                        Ok(v.iter().map(v3).collect())
+                    }
+                    Some(v) => Err(format!(
+                        "{what} has {} entries for {} nodes",
+                        v.len(),
+                        nodes.len()
+                    )),
+                };
+                WallKind::Facets {
+                    node_velocities: per_node(&self.node_velocities, "node_velocities")?,
+                    node_forces: per_node(&self.node_forces, "node_forces")?,
+                    nodes,
+                    triangles,
+                }
+            }
+            _ => {
+                let point = need(&self.point, kind, "point")?;
+                let axis = need(&self.axis, kind, "axis")?;
+                let radius = need(&self.radius, kind, "radius")?;
+                let height = need(&self.height, kind, "height")?;
+                let segments = need(&self.segments, kind, "segments")?;
+                let radial_rate = self.radial_rate.unwrap_or(0.0);
+                all_finite(
+                    "cylinder",
+                    point.iter().chain(&axis).chain([&radius, &height, &radial_rate]),
+                )?;
+                if radius <= 0.0 || height <= 0.0 {
+                    return Err(format!(
+                        "a cylinder needs a positive radius and height (got {radius}, {height})"
+                    ));
+                }
+                if segments < 3 {
+                    return Err(format!("a cylinder needs at least 3 segments (got {segments})"));
+                }
+                WallKind::Cylinder {
+                    point: v3(&point),
+                    axis: unit(&axis, "axis")?,
+                    radius,
+                    height,
+                    segments,
+                    radial_rate,
+                }
+            }
+        };
+        Ok(Wall {
+            kind: wall_kind,
+            velocity: v3(&self.velocity),
+            force: v3(&self.force),
+        })
+    }
 }
 
 /// A contact: body `body` touched by `partner` (`{"body": i}` or `{"wall": j}`); the normal
@@ -284,27 +493,13 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 pending_bodies.push((n, b));
             }
             Record::Wall(w) => {
-                if w.kind != "plane" {
+                if w.id as usize != world.walls.len() {
                     return Err(at(
                         n,
-                        format!("wall kind '{}' is not supported (plane)", w.kind),
+                        format!("wall id {} out of order (expected {})", w.id, world.walls.len()),
                     ));
                 }
-                finite(
-                    n,
-                    "wall",
-                    &[w.normal[0], w.normal[1], w.normal[2], w.offset],
-                )?;
-                let norm = v3(&w.normal).norm();
-                if (norm - 1.0).abs() > 1e-9 {
-                    return Err(at(n, format!("wall normal has length {norm}, not 1")));
-                }
-                world.walls.push(PlaneWall {
-                    normal: v3(&w.normal),
-                    offset: w.offset,
-                    velocity: v3(&w.velocity),
-                    force: v3(&w.force),
-                });
+                world.walls.push(w.to_wall().map_err(|e| at(n, e))?);
             }
             Record::Contact(c) => contacts.push((n, c)),
             Record::Energy {
@@ -562,14 +757,7 @@ pub fn write_world<W: Write>(world: &World, mut out: W) -> std::io::Result<()> {
         }))?;
     }
     for (id, w) in world.walls.iter().enumerate() {
-        line(&Record::Wall(WallRecord {
-            id: id as u32,
-            kind: "plane".into(),
-            normal: a3(&w.normal),
-            offset: w.offset,
-            velocity: a3(&w.velocity),
-            force: a3(&w.force),
-        }))?;
+        line(&Record::Wall(WallRecord::from_wall(id as u32, w)))?;
     }
     for ((partner, body), c) in &world.contacts {
         let partner = match partner {
@@ -636,6 +824,69 @@ mod tests {
         let mut b = Vec::new();
         write_world(&back, &mut b).unwrap();
         assert_eq!(String::from_utf8(a).unwrap(), String::from_utf8(b).unwrap());
+    }
+
+    /// The scene with its plane replaced by a floor of facets under a cylinder.
+    fn walled_scene() -> String {
+        scene().replace(
+            r#"{"type":"wall","id":0,"kind":"plane","normal":[0,0,1],"offset":0}"#,
+            concat!(
+                r#"{"type":"wall","id":0,"kind":"facets","nodes":[[-1,-1,0],[1,-1,0],[1,1,0],[-1,1,0]],"triangles":[[0,1,2],[0,2,3]],"node_velocities":[[0,0,0],[0,0,0],[0,0,1e-4],[0,0,0]]}"#,
+                "\n",
+                r#"{"type":"wall","id":1,"kind":"cylinder","point":[0.0015,0,-0.1],"axis":[0,0,1],"radius":0.01527,"height":1,"segments":64,"radial_rate":-5e-4}"#
+            ),
+        )
+    }
+
+    #[test]
+    fn facet_and_cylinder_walls_round_trip_exactly() {
+        let mut w = read_world(walled_scene().as_bytes()).unwrap();
+        w.dt = 0.2 * w.critical_dt();
+        for _ in 0..20_000 {
+            w.step();
+        }
+        // Body 0 rests on the facets; the shrinking cylinder has reached the bodies.
+        let keys: Vec<_> = w.contacts.keys().collect();
+        assert!(keys.contains(&&(Partner::Wall(0), 0)), "{keys:?}");
+        assert!(keys.iter().any(|k| k.0 == Partner::Wall(1)), "{keys:?}");
+        let mut a = Vec::new();
+        write_world(&w, &mut a).unwrap();
+        let mut back = read_world(a.as_slice()).unwrap();
+        let mut b = Vec::new();
+        write_world(&back, &mut b).unwrap();
+        assert_eq!(String::from_utf8(a).unwrap(), String::from_utf8(b).unwrap());
+        // And it continues identically.
+        for _ in 0..100 {
+            w.step();
+            back.step();
+        }
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        write_world(&w, &mut a).unwrap();
+        write_world(&back, &mut b).unwrap();
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn bad_walls_are_named() {
+        let good = walled_scene();
+        let cases = [
+            (r#""kind":"facets""#, r#""kind":"sphere""#, "wall kind 'sphere' is not known"),
+            (r#""triangles":[[0,1,2],[0,2,3]]"#, r#""triangles":[[0,1,2],[0,2,9]]"#, "triangle 1 uses node 9"),
+            (r#""triangles":[[0,1,2],[0,2,3]]"#, r#""triangles":[[0,1,2],[0,2,2]]"#, "triangle 1 has no area"),
+            (r#"[0,0,1e-4],[0,0,0]]"#, r#"[0,0,1e-4]]"#, "node_velocities has 3 entries for 4 nodes"),
+            (r#""radius":0.01527"#, r#""radius":-1"#, "positive radius"),
+            (r#""segments":64"#, r#""segments":2"#, "at least 3 segments"),
+            (r#""axis":[0,0,1]"#, r#""axis":[0,0,2]"#, "axis has length 2"),
+            (r#""axis":[0,0,1],"#, "", "needs 'axis'"),
+            (r#""height":1"#, r#""height":1,"normal":[0,0,1]"#, "a cylinder wall has no field 'normal'"),
+            (r#""radius":0.01527"#, r#""radius":NaN"#, "line 6"),
+        ];
+        for (from, to, expect) in cases {
+            assert!(good.contains(from), "{from}");
+            let e = error_of(&good.replacen(from, to, 1));
+            assert!(e.contains(expect), "{to}: {e}");
+            assert!(e.starts_with("line"), "{e}");
+        }
     }
 
     fn error_of(text: &str) -> String {

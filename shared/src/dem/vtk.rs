@@ -3,6 +3,7 @@
 //! the sliding flag), walls (a square patch of each plane), and a `.pvd` collection per stream
 //! that ParaView opens as a time series. ASCII, so the files are readable and diffable.
 
+use super::wall::{basis, WallKind};
 use super::world::{Partner, World};
 use crate::math::Vec3;
 use std::fmt::Write as _;
@@ -135,8 +136,9 @@ pub fn contacts_vtu(world: &World) -> String {
     unstructured(&points, &cells, 3, &data)
 }
 
-/// The walls: a square patch of each plane around the bodies, cell data `force` (what the
-/// particles push on it).
+/// The walls: a square patch of each plane around the bodies, the triangles of facet walls,
+/// the segments of cylinders; cell data `force` (what the particles push on the wall, shared
+/// among its cells by area).
 pub fn walls_vtu(world: &World) -> String {
     let centres: Vec<Vec3> = world.bodies.iter().map(|b| b.pos).collect();
     let (lo, hi) = crate::math::bounding_box(&centres).unwrap_or((Vec3::zeros(), Vec3::zeros()));
@@ -144,19 +146,62 @@ pub fn walls_vtu(world: &World) -> String {
     let half = ((hi - lo).norm() / 2.0).max(1e-3) * 1.2;
     let (mut points, mut cells, mut forces) = (Vec::new(), Vec::new(), Vec::new());
     for w in &world.walls {
-        let n = w.normal;
-        let p = centre - n * (n.dot(&centre) - w.offset);
-        let helper = if n.x.abs() < 0.9 {
-            Vec3::x()
-        } else {
-            Vec3::y()
-        };
-        let u = n.cross(&helper).normalize() * half;
-        let v = n.cross(&u);
         let base = points.len();
-        points.extend([p - u - v, p + u - v, p + u + v, p - u + v]);
-        cells.push((base..base + 4).collect());
-        forces.push(w.force);
+        match &w.kind {
+            WallKind::Plane { normal: n, offset } => {
+                let p = centre - n * (n.dot(&centre) - offset);
+                let (u, v) = basis(n);
+                let (u, v) = (u * half, v * half);
+                points.extend([p - u - v, p + u - v, p + u + v, p - u + v]);
+                cells.push((base..base + 4).collect());
+                forces.push(w.force);
+            }
+            WallKind::Facets {
+                nodes, triangles, ..
+            } => {
+                // Each triangle carries the wall's total force spread by area (the per-node
+                // forces are in the state).
+                points.extend(nodes);
+                let area: Vec<f64> = triangles
+                    .iter()
+                    .map(|t| {
+                        let [a, b, c] = t.map(|i| nodes[i as usize]);
+                        (b - a).cross(&(c - a)).norm() / 2.0
+                    })
+                    .collect();
+                let total: f64 = area.iter().sum();
+                for (t, a) in triangles.iter().zip(&area) {
+                    cells.push(t.iter().map(|&i| base + i as usize).collect());
+                    forces.push(w.force * (a / total));
+                }
+            }
+            WallKind::Cylinder {
+                point,
+                axis,
+                radius,
+                height,
+                segments,
+                ..
+            } => {
+                let (e1, e2) = basis(axis);
+                let n = *segments as usize;
+                for j in 0..n {
+                    let a = j as f64 * std::f64::consts::TAU / n as f64;
+                    let p = point + (e1 * a.cos() + e2 * a.sin()) * *radius;
+                    points.extend([p, p + axis * *height]);
+                }
+                for j in 0..n {
+                    let k = (j + 1) % n;
+                    cells.push(vec![
+                        base + 2 * j,
+                        base + 2 * j + 1,
+                        base + 2 * k + 1,
+                        base + 2 * k,
+                    ]);
+                    forces.push(w.force / n as f64);
+                }
+            }
+        }
     }
     let mut data = String::new();
     data_array(
@@ -215,7 +260,8 @@ impl Snapshots {
 mod tests {
     use super::*;
     use crate::dem::shape::Shape;
-    use crate::dem::world::{Material, PlaneWall};
+    use crate::dem::wall::Wall;
+    use crate::dem::world::Material;
     use nalgebra::UnitQuaternion;
 
     /// The numbers inside the `Name` data array of the first piece.
@@ -235,7 +281,7 @@ mod tests {
     fn counts_agree_with_the_header() {
         let mut w = World::new(Material::default(), Vec3::new(0.0, 0.0, -9.81));
         let s = w.add_shape(Shape::from_mesh(&crate::mesh::cube(0.5)).unwrap());
-        w.walls.push(PlaneWall::new(Vec3::zeros(), Vec3::z()));
+        w.walls.push(Wall::plane(Vec3::zeros(), Vec3::z()));
         w.add_body(
             s,
             0.02,

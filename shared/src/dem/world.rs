@@ -20,7 +20,8 @@
 //! Energy audit: kinetic + elastic (normal and shear springs) + friction and damping
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
 
-use super::overlap::{overlap, overlap_half_space, Overlap};
+use super::overlap::{overlap, Overlap};
+use super::wall::Wall;
 use super::shape::{Posed, Shape};
 use crate::math::Vec3;
 use nalgebra::{Unit, UnitQuaternion};
@@ -99,29 +100,6 @@ impl Body {
     }
 }
 
-/// An infinite plane wall: solid where `normal . x <= offset`; moves with `velocity`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PlaneWall {
-    pub normal: Vec3,
-    pub offset: f64,
-    pub velocity: Vec3,
-    /// Total force the particles exert on the wall in the last step.
-    pub force: Vec3,
-}
-
-impl PlaneWall {
-    /// A wall through `point` whose solid side is opposite `normal`.
-    pub fn new(point: Vec3, normal: Vec3) -> PlaneWall {
-        let n = normal.normalize();
-        PlaneWall {
-            normal: n,
-            offset: n.dot(&point),
-            velocity: Vec3::zeros(),
-            force: Vec3::zeros(),
-        }
-    }
-}
-
 /// What a body touches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Partner {
@@ -184,7 +162,7 @@ impl Energy {
 pub struct World {
     pub shapes: Vec<Shape>,
     pub bodies: Vec<Body>,
-    pub walls: Vec<PlaneWall>,
+    pub walls: Vec<Wall>,
     pub material: Material,
     pub gravity: Vec3,
     pub dt: f64,
@@ -200,6 +178,10 @@ struct Touch {
     contact: Contact,
     force: Vec3,
     slip_energy: f64,
+    /// For facet walls: the share of the force each node carries.
+    node_weights: Vec<(u32, f64)>,
+    /// Velocity of the partner's surface at the contact point.
+    wall_velocity: Vec3,
 }
 
 impl World {
@@ -340,6 +322,8 @@ impl World {
             contact,
             force: n * fn_ + shear,
             slip_energy,
+            node_weights: Vec::new(),
+            wall_velocity: va,
         }
     }
 
@@ -378,18 +362,16 @@ impl World {
                 return None;
             }
             let wall = &this.walls[w as usize];
-            let o = overlap_half_space(
-                &this.shapes[b.shape as usize],
-                &posed[i as usize],
-                &wall.normal,
-                wall.offset,
-            )?;
-            Some(this.touch(
+            let shape = &this.shapes[b.shape as usize];
+            let hit = wall.touch(shape, &posed[i as usize], shape.radius * b.scale)?;
+            let mut t = this.touch(
                 (Partner::Wall(w), i),
-                &o,
-                wall.velocity,
+                &hit.overlap,
+                hit.velocity,
                 this.material.wall_friction,
-            ))
+            );
+            t.node_weights = hit.node_weights;
+            Some(t)
         });
         touches.extend(wall_touches);
         // Forces in a fixed order.
@@ -407,7 +389,7 @@ impl World {
             .collect();
         let mut torque = vec![Vec3::zeros(); nb];
         for w in &mut self.walls {
-            w.force = Vec3::zeros();
+            w.clear_forces();
         }
         let mut elastic = 0.0;
         let mut wall_power = 0.0;
@@ -423,10 +405,10 @@ impl World {
                     torque[a] -= (t.contact.point - self.bodies[a].pos).cross(&t.force);
                 }
                 Partner::Wall(w) => {
-                    let wall = &mut self.walls[w as usize];
-                    wall.force -= t.force;
-                    // The wall pushes the body with t.force while moving at its velocity.
-                    wall_power += t.force.dot(&wall.velocity);
+                    self.walls[w as usize].push(&-t.force, &t.node_weights);
+                    // The wall pushes the body with t.force while its surface moves at the
+                    // velocity the shear spring saw.
+                    wall_power += t.force.dot(&t.wall_velocity);
                 }
             }
             elastic += t.contact.elastic_energy(&self.material);
@@ -463,7 +445,7 @@ impl World {
             kinetic += b.kinetic_energy();
         }
         for w in &mut self.walls {
-            w.offset += w.normal.dot(&w.velocity) * dt;
+            w.advance(dt);
         }
         self.energy.kinetic = kinetic;
         self.energy.damping += damping;

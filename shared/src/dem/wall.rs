@@ -1,0 +1,487 @@
+//! Walls: infinite planes, triangulated surfaces whose nodes can move (platens, the triaxial
+//! membrane), and rigid cylinders (a container).
+//!
+//! A body touching a wall makes one contact with it, whatever the number of facets under it.
+//! Each facet is the solid prism behind it (its triangle extruded against its normal by the
+//! body's diameter); the body's overlap with each prism comes from the overlap polyhedron
+//! ([`super::overlap`]), and the pieces are summed: volume `V`, centroid, and the contact area
+//! `S` = the sum of the facets' caps (each facet's area inside the body, along its normal).
+//! Then as for bodies: normal `S / |S|`, depth `V / |S|`, point at the centroid. A flat face
+//! crossing from one facet to its coplanar neighbour sees no change at all; the force is shared
+//! among the facets in proportion to their volumes and passed to their nodes with the
+//! barycentric weights of each piece's centroid.
+//!
+//! A cylinder is the prism of `segments` flat facets inscribed in the circle (the sagitta,
+//! `radius (1 - cos(pi / segments))`, is the price: 0.03 % of the radius for 128 segments); only
+//! the facets within reach of a body are built.
+
+use super::overlap::{overlap_half_space, overlap_parts, Overlap};
+use super::shape::{Posed, Shape};
+use crate::math::Vec3;
+use nalgebra::UnitQuaternion;
+use std::sync::OnceLock;
+
+/// What a wall is.
+#[derive(Clone, Debug, PartialEq)]
+pub enum WallKind {
+    /// Solid where `normal . x <= offset`.
+    Plane { normal: Vec3, offset: f64 },
+    /// Triangles of `nodes`, counter-clockwise seen from the side the particles are on; solid
+    /// behind each. `node_velocities` move nodes one by one (on top of the wall's velocity);
+    /// `node_forces` is what the particles pushed on each node in the last step.
+    Facets {
+        nodes: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+        node_velocities: Vec<Vec3>,
+        node_forces: Vec<Vec3>,
+    },
+    /// Particles inside a circular tube: axis through `point` along unit `axis`, from `point`
+    /// to `point + height axis`; the radius changes at `radial_rate` (m/s).
+    Cylinder {
+        point: Vec3,
+        axis: Vec3,
+        radius: f64,
+        height: f64,
+        segments: u32,
+        radial_rate: f64,
+    },
+}
+
+/// A wall: its kind, a rigid velocity, and the force the particles pushed on it last step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Wall {
+    pub kind: WallKind,
+    pub velocity: Vec3,
+    pub force: Vec3,
+}
+
+/// One body's contact with a wall: the combined overlap, the wall's surface velocity at the
+/// contact point, and for facet walls how the force is shared among the nodes (weights sum to 1).
+pub struct WallHit {
+    pub overlap: Overlap,
+    pub velocity: Vec3,
+    pub node_weights: Vec<(u32, f64)>,
+}
+
+impl Wall {
+    /// A plane through `point` whose solid side is opposite `normal`.
+    pub fn plane(point: Vec3, normal: Vec3) -> Wall {
+        let n = normal.normalize();
+        Wall::new(WallKind::Plane {
+            normal: n,
+            offset: n.dot(&point),
+        })
+    }
+
+    /// A wall at rest.
+    pub fn new(kind: WallKind) -> Wall {
+        Wall {
+            kind,
+            velocity: Vec3::zeros(),
+            force: Vec3::zeros(),
+        }
+    }
+
+    /// A rigid cylinder around the particles (see [`WallKind::Cylinder`]).
+    pub fn cylinder(point: Vec3, axis: Vec3, radius: f64, height: f64, segments: u32) -> Wall {
+        Wall::new(WallKind::Cylinder {
+            point,
+            axis: axis.normalize(),
+            radius,
+            height,
+            segments,
+            radial_rate: 0.0,
+        })
+    }
+
+    /// Facets of `nodes` (see [`WallKind::Facets`]).
+    pub fn facets(nodes: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Wall {
+        let n = nodes.len();
+        Wall::new(WallKind::Facets {
+            nodes,
+            triangles,
+            node_velocities: vec![Vec3::zeros(); n],
+            node_forces: vec![Vec3::zeros(); n],
+        })
+    }
+
+    /// The contact of body `b` (shape `s`, bounding radius `radius`) with this wall.
+    pub fn touch(&self, s: &Shape, b: &Posed, radius: f64) -> Option<WallHit> {
+        match &self.kind {
+            WallKind::Plane { normal, offset } => {
+                let o = overlap_half_space(s, b, normal, *offset)?;
+                Some(WallHit {
+                    overlap: o,
+                    velocity: self.velocity,
+                    node_weights: Vec::new(),
+                })
+            }
+            WallKind::Facets {
+                nodes,
+                triangles,
+                node_velocities,
+                ..
+            } => {
+                let mut sum = Sum::default();
+                let mut pieces = Vec::new();
+                for t in triangles {
+                    let q = t.map(|i| nodes[i as usize]);
+                    // Quick reject: the prism's box misses the body's box.
+                    let n = (q[1] - q[0]).cross(&(q[2] - q[0])).normalize();
+                    let back = -n * (2.0 * radius);
+                    let lo = q[0].inf(&q[1]).inf(&q[2]);
+                    let hi = q[0].sup(&q[1]).sup(&q[2]);
+                    let (lo, hi) = (lo.inf(&(lo + back)), hi.sup(&(hi + back)));
+                    if (0..3).any(|k| lo[k] > b.hi[k] || b.lo[k] > hi[k]) {
+                        continue;
+                    }
+                    if let Some((v, c, cap)) = facet_overlap(&q, &n, 2.0 * radius, s, b) {
+                        sum.add(v, &c, &cap);
+                        pieces.push((*t, q, v, c));
+                    }
+                }
+                let overlap = sum.overlap()?;
+                let mut velocity = self.velocity;
+                let mut node_weights = Vec::new();
+                for (t, q, v, c) in pieces {
+                    let share = v / overlap.volume;
+                    for (k, w) in barycentric(&q, &c).into_iter().enumerate() {
+                        let node = t[k];
+                        velocity += node_velocities[node as usize] * (share * w);
+                        node_weights.push((node, share * w));
+                    }
+                }
+                Some(WallHit {
+                    overlap,
+                    velocity,
+                    node_weights,
+                })
+            }
+            WallKind::Cylinder {
+                point,
+                axis,
+                radius: r_cyl,
+                height,
+                segments,
+                radial_rate,
+            } => {
+                let centre = (b.lo + b.hi) * 0.5;
+                let rel = centre - point;
+                let radial = rel - axis * axis.dot(&rel);
+                let rho = radial.norm();
+                let n_seg = *segments as usize;
+                let step = std::f64::consts::TAU / n_seg as f64;
+                if rho + radius < r_cyl * (step / 2.0).cos() {
+                    return None;
+                }
+                let (e1, e2) = basis(axis);
+                let theta = radial.dot(&e2).atan2(radial.dot(&e1));
+                let reach = if rho > radius {
+                    (radius / rho).asin() + step
+                } else {
+                    std::f64::consts::PI
+                };
+                let first = ((theta - reach) / step).floor() as i64;
+                let last = ((theta + reach) / step).floor() as i64;
+                let count = ((last - first + 1) as usize).min(n_seg);
+                let corner = |j: i64, h: f64| {
+                    let a = j as f64 * step;
+                    point + (e1 * a.cos() + e2 * a.sin()) * *r_cyl + axis * h
+                };
+                let mut sum = Sum::default();
+                for j in first..first + count as i64 {
+                    // Counter-clockwise seen from the axis (the particles' side).
+                    let q = [
+                        corner(j, 0.0),
+                        corner(j, *height),
+                        corner(j + 1, *height),
+                        corner(j + 1, 0.0),
+                    ];
+                    let n = (q[1] - q[0]).cross(&(q[2] - q[0])).normalize();
+                    if let Some((v, c, cap)) = facet_overlap(&q, &n, 2.0 * radius, s, b) {
+                        sum.add(v, &c, &cap);
+                    }
+                }
+                let overlap = sum.overlap()?;
+                let rel = overlap.centroid - point;
+                let out = (rel - axis * axis.dot(&rel)).normalize();
+                Some(WallHit {
+                    overlap,
+                    velocity: self.velocity + out * *radial_rate,
+                    node_weights: Vec::new(),
+                })
+            }
+        }
+    }
+
+    /// Moves the wall by its velocities over `dt`.
+    pub fn advance(&mut self, dt: f64) {
+        let v = self.velocity;
+        match &mut self.kind {
+            WallKind::Plane { normal, offset } => *offset += normal.dot(&v) * dt,
+            WallKind::Facets {
+                nodes,
+                node_velocities,
+                ..
+            } => {
+                for (p, nv) in nodes.iter_mut().zip(node_velocities.iter()) {
+                    *p += (v + nv) * dt;
+                }
+            }
+            WallKind::Cylinder {
+                point,
+                radius,
+                radial_rate,
+                ..
+            } => {
+                *point += v * dt;
+                *radius += *radial_rate * dt;
+            }
+        }
+    }
+
+    /// Clears the forces of the last step.
+    pub fn clear_forces(&mut self) {
+        self.force = Vec3::zeros();
+        if let WallKind::Facets { node_forces, .. } = &mut self.kind {
+            node_forces.iter_mut().for_each(|f| *f = Vec3::zeros());
+        }
+    }
+
+    /// Adds `f`, pushed by a particle through a contact with these node weights.
+    pub fn push(&mut self, f: &Vec3, node_weights: &[(u32, f64)]) {
+        self.force += f;
+        if let WallKind::Facets { node_forces, .. } = &mut self.kind {
+            for &(node, w) in node_weights {
+                node_forces[node as usize] += f * w;
+            }
+        }
+    }
+}
+
+/// Sums facet pieces into one overlap.
+#[derive(Default)]
+struct Sum {
+    volume: f64,
+    moment: Vec3,
+    cap: Vec3,
+}
+
+impl Sum {
+    fn add(&mut self, v: f64, c: &Vec3, cap: &Vec3) {
+        self.volume += v;
+        self.moment += c * v;
+        self.cap += cap;
+    }
+
+    fn overlap(&self) -> Option<Overlap> {
+        // A body wholly behind the facets has no cap: it has left the container, and no
+        // direction to push it back is right.
+        if self.volume <= 0.0 || self.cap.norm() == 0.0 {
+            return None;
+        }
+        Some(Overlap {
+            volume: self.volume,
+            centroid: self.moment / self.volume,
+            area_b: -self.cap,
+        })
+    }
+}
+
+/// Two unit vectors completing `axis` to a right-handed basis.
+pub fn basis(axis: &Vec3) -> (Vec3, Vec3) {
+    let helper = if axis.x.abs() < 0.9 {
+        Vec3::x()
+    } else {
+        Vec3::y()
+    };
+    let e1 = axis.cross(&helper).normalize();
+    (e1, axis.cross(&e1))
+}
+
+/// Barycentric weights of `p` (projected) in the polygon's first triangle, clamped and
+/// renormalised; for a quad (a cylinder segment) only the triangles matter through the caller.
+fn barycentric(q: &[Vec3; 3], p: &Vec3) -> [f64; 3] {
+    let (e0, e1, ep) = (q[1] - q[0], q[2] - q[0], p - q[0]);
+    let (d00, d01, d11) = (e0.dot(&e0), e0.dot(&e1), e1.dot(&e1));
+    let (d20, d21) = (ep.dot(&e0), ep.dot(&e1));
+    let den = d00 * d11 - d01 * d01;
+    let v = ((d11 * d20 - d01 * d21) / den).clamp(0.0, 1.0);
+    let w = ((d00 * d21 - d01 * d20) / den).clamp(0.0, 1.0);
+    let u = (1.0 - v - w).max(0.0);
+    let s = u + v + w;
+    [u / s, v / s, w / s]
+}
+
+/// Topology of the prism under a facet of `k` corners (k = 3 or 4): top face first (the cap),
+/// then the bottom and the sides. Only the face lists are used.
+fn prism(k: usize) -> &'static Shape {
+    static PRISMS: OnceLock<[Shape; 2]> = OnceLock::new();
+    let make = |k: usize| {
+        let mut faces: Vec<Vec<u32>> = vec![(0..k as u32).collect()];
+        faces.push((0..k as u32).rev().map(|i| i + k as u32).collect());
+        for i in 0..k as u32 {
+            let j = (i + 1) % k as u32;
+            faces.push(vec![i, i + k as u32, j + k as u32, j]);
+        }
+        let mut face_start = vec![0u32];
+        let mut face_verts = Vec::new();
+        for f in &faces {
+            face_verts.extend(f);
+            face_start.push(face_verts.len() as u32);
+        }
+        Shape {
+            name: format!("prism{k}"),
+            vertices: Vec::new(),
+            face_start,
+            face_verts,
+            normals: Vec::new(),
+            offsets: Vec::new(),
+            volume: 0.0,
+            moments: Vec3::zeros(),
+            radius: 0.0,
+            centroid_in_mesh: Vec3::zeros(),
+            frame_in_mesh: UnitQuaternion::identity(),
+        }
+    };
+    &PRISMS.get_or_init(|| [make(3), make(4)])[k - 3]
+}
+
+/// The overlap of body B with the prism behind the convex facet `q` (counter-clockwise about
+/// its unit normal `n`), `depth` deep: volume, centroid and the cap (the facet's area inside B,
+/// along `n`).
+fn facet_overlap<const K: usize>(
+    q: &[Vec3; K],
+    n: &Vec3,
+    depth: f64,
+    sb: &Shape,
+    b: &Posed,
+) -> Option<(f64, Vec3, Vec3)> {
+    let mut vertices: Vec<Vec3> = q.to_vec();
+    vertices.extend(q.iter().map(|p| p - n * depth));
+    let mut normals = vec![*n, -n];
+    let mut offsets = vec![n.dot(&q[0]), -n.dot(&vertices[K])];
+    for i in 0..K {
+        let m = (q[(i + 1) % K] - q[i]).cross(n).normalize();
+        normals.push(m);
+        offsets.push(m.dot(&q[i]));
+    }
+    let (lo, hi) = crate::math::bounding_box(&vertices)?;
+    let posed = Posed {
+        vertices,
+        normals,
+        offsets,
+        lo,
+        hi,
+    };
+    let (o, cap) = overlap_parts(prism(K), &posed, sb, b)?;
+    Some((o.volume, o.centroid, cap))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::cube;
+    use approx::assert_relative_eq;
+
+    fn cube_at(p: Vec3) -> (Shape, Posed) {
+        let s = Shape::from_mesh(&cube(0.5)).unwrap();
+        let b = s.posed(&p, &UnitQuaternion::identity(), 1.0);
+        (s, b)
+    }
+
+    /// A floor z = 0 of two triangles over [-2, 2]^2, or of many small ones.
+    fn floor(cells: usize) -> Wall {
+        let mut nodes = Vec::new();
+        let h = 4.0 / cells as f64;
+        for j in 0..=cells {
+            for i in 0..=cells {
+                nodes.push(Vec3::new(-2.0 + i as f64 * h, -2.0 + j as f64 * h, 0.0));
+            }
+        }
+        let id = |i: usize, j: usize| (j * (cells + 1) + i) as u32;
+        let mut tris = Vec::new();
+        for j in 0..cells {
+            for i in 0..cells {
+                tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        Wall::facets(nodes, tris)
+    }
+
+    #[test]
+    fn facets_under_a_face_act_as_one_plane() {
+        // A unit cube sunk 0.01 into a floor, straddling many facets at odd offsets: the
+        // contact equals the plane's, whatever the facets under it.
+        let plane = Wall::plane(Vec3::zeros(), Vec3::z());
+        for cells in [1, 3, 7] {
+            let wall = floor(cells);
+            for x in [0.0, 0.13, 0.5, -0.77] {
+                let (s, b) = cube_at(Vec3::new(x, 0.31 * x, 0.49));
+                let r = s.radius;
+                let f = wall.touch(&s, &b, r).unwrap().overlap;
+                let p = plane.touch(&s, &b, r).unwrap().overlap;
+                assert_relative_eq!(f.volume, p.volume, max_relative = 1e-9);
+                assert_relative_eq!(f.depth(), 0.01, max_relative = 1e-9);
+                assert_relative_eq!(f.normal(), Vec3::z(), epsilon = 1e-12);
+                assert_relative_eq!(f.centroid, p.centroid, epsilon = 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn facet_node_weights_share_the_force_and_sum_to_one() {
+        let wall = floor(2);
+        let (s, b) = cube_at(Vec3::new(0.3, -0.2, 0.49));
+        let hit = wall.touch(&s, &b, s.radius).unwrap();
+        let total: f64 = hit.node_weights.iter().map(|(_, w)| w).sum();
+        assert_relative_eq!(total, 1.0, epsilon = 1e-12);
+        // The weighted node positions give back the contact point (in the floor's plane).
+        let WallKind::Facets { nodes, .. } = &wall.kind else {
+            unreachable!()
+        };
+        let p: Vec3 = hit
+            .node_weights
+            .iter()
+            .map(|&(k, w)| nodes[k as usize] * w)
+            .sum();
+        assert_relative_eq!(p.xy(), hit.overlap.centroid.xy(), epsilon = 1e-9);
+    }
+
+    #[test]
+    fn cylinder_pushes_inwards_and_misses_bodies_well_inside() {
+        let wall = Wall::cylinder(Vec3::zeros(), Vec3::z(), 5.0, 10.0, 256);
+        let (s, b) = cube_at(Vec3::new(0.0, 0.0, 5.0));
+        assert!(wall.touch(&s, &b, s.radius).is_none());
+        // A cube at azimuth 0 (a segment corner) pressed 0.01 into the wall: a face against
+        // two segments, nearly flat.
+        for angle in [0.0, 0.3, 1.234, -2.5] {
+            let rot = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), angle);
+            let p = rot * Vec3::new(5.0 - 0.49, 0.0, 5.0);
+            let b = s.posed(&p, &rot, 1.0);
+            let o = wall.touch(&s, &b, s.radius).unwrap().overlap;
+            let inward = -(rot * Vec3::x());
+            assert!((o.normal() - inward).norm() < 0.01, "normal {:?}", o.normal());
+            // Sagitta of 0.5 over radius 5 is 0.025: the depth is 0.01 less up to that.
+            assert!((o.depth() - 0.01).abs() < 0.025, "depth {}", o.depth());
+        }
+    }
+
+    #[test]
+    fn moving_nodes_move_the_contact_velocity_and_the_wall() {
+        let mut wall = floor(1);
+        if let WallKind::Facets {
+            node_velocities, ..
+        } = &mut wall.kind
+        {
+            node_velocities.iter_mut().for_each(|v| *v = Vec3::new(0.0, 0.0, 0.5));
+        }
+        let (s, b) = cube_at(Vec3::new(0.1, 0.1, 0.49));
+        let hit = wall.touch(&s, &b, s.radius).unwrap();
+        assert_relative_eq!(hit.velocity, Vec3::new(0.0, 0.0, 0.5), epsilon = 1e-12);
+        wall.advance(0.1);
+        let hit = wall.touch(&s, &b, s.radius).unwrap();
+        assert_relative_eq!(hit.overlap.depth(), 0.06, max_relative = 1e-9);
+    }
+}
