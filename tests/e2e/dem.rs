@@ -134,6 +134,12 @@ fn bad_scenes_and_arguments() {
     fails(&[], &scene, &["--steps N or --time T"]);
     fails(&["--steps", "1", "--dt", "-1"], &scene, &["--dt"]);
     fails(
+        &["--steps", "1", "--until-unbalanced", "0"],
+        &scene,
+        &["--until-unbalanced must be a positive ratio"],
+    );
+    fails(&["--until-unbalanced", "0.01"], &scene, &["--steps N or --time T"]);
+    fails(
         &["--steps", "1"],
         text.replace("\"scale\":0.008", "\"scale\":-1").as_bytes(),
         &["line 11", "scale"],
@@ -173,4 +179,38 @@ fn vtk_snapshots_and_collections() {
     let p = std::fs::read_to_string(dir.join("particles_000000.vtu")).unwrap();
     assert!(p.contains("Name=\"id\"") && p.contains("Name=\"velocity\""));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn until_unbalanced_stops_early_at_the_ratio() {
+    // The six polyhedra of the example settle on the floor: the run stops well before the
+    // 2 s limit, with the ratio of its last step below the target.
+    let scene = repo_file("examples/drop.jsonl");
+    let series = std::env::temp_dir().join(format!("dem-until-{}.jsonl", std::process::id()));
+    let out = run(
+        "dem",
+        &[
+            "--until-unbalanced",
+            "0.01",
+            "--time",
+            "2",
+            "--series",
+            series.to_str().unwrap(),
+            "--every",
+            "1000000000",
+        ],
+        &scene,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("unbalanced-force ratio") && err.contains("< 0.01"), "{err}");
+    let text = std::fs::read_to_string(&series).unwrap();
+    let _ = std::fs::remove_file(&series);
+    let last: serde_json::Value = serde_json::from_str(text.lines().last().unwrap()).unwrap();
+    let (time, ratio) = (last["time"].as_f64().unwrap(), last["unbalanced"].as_f64().unwrap());
+    assert!(ratio < 0.01, "ratio {ratio}");
+    assert!(time < 1.9, "stopped at {time} s");
+    // And the state it wrote is that step's.
+    let state = String::from_utf8(out.stdout).unwrap();
+    assert!(state.contains(&format!("\"step\":{}", last["step"])), "state at the last step");
 }

@@ -14,6 +14,7 @@ Examples:
   dem --steps 1000 < settled.jsonl | dem --steps 1000 > a.jsonl   (same bytes as --steps 2000)
   dem --import-peer ../shared/peers/yade/scene_500.txt --steps 0 > scene500.jsonl
   dem --time 0.3 --vtk out/drop --vtk-every 20000 < examples/drop.jsonl > /dev/null
+  dem --until-unbalanced 1e-3 --time 2 < examples/drop.jsonl > settled.jsonl
       then open out/drop/particles.pvd (and contacts.pvd, walls.pvd) in ParaView
 
 Scene format (JSON lines, version 1, SI units; docs/dem-state.md): a header, then records
@@ -37,6 +38,10 @@ struct Cli {
     /// Simulated time to run, seconds
     #[arg(long)]
     time: Option<f64>,
+    /// Stop as soon as the unbalanced-force ratio (mean net force on a body over mean contact
+    /// force) falls below R; --steps or --time is then the limit
+    #[arg(long, value_name = "R")]
+    until_unbalanced: Option<f64>,
     /// Time step, seconds (default: the scene's, or --safety x critical)
     #[arg(long, allow_negative_numbers = true)]
     dt: Option<f64>,
@@ -76,6 +81,8 @@ struct SeriesLine {
     wall_work: f64,
     balance: f64,
     contacts: usize,
+    /// null while nothing touches
+    unbalanced: f64,
     wall_forces: Vec<[f64; 3]>,
 }
 
@@ -92,6 +99,7 @@ fn series_line(w: &World) -> SeriesLine {
         wall_work: e.wall_work,
         balance: e.balance(),
         contacts: w.contacts.len(),
+        unbalanced: w.unbalanced,
         wall_forces: w
             .walls
             .iter()
@@ -147,6 +155,11 @@ fn run(args: Cli) -> anyhow::Result<()> {
     if args.every == 0 {
         bail!("--every must be at least 1");
     }
+    if let Some(r) = args.until_unbalanced {
+        if !(r > 0.0 && r.is_finite()) {
+            bail!("--until-unbalanced must be a positive ratio, got {r}");
+        }
+    }
     let mut series = match &args.series {
         Some(p) => Some(std::io::BufWriter::new(
             std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))?,
@@ -168,21 +181,37 @@ fn run(args: Cli) -> anyhow::Result<()> {
     };
     let mut progress = cli::Progress::new("dem");
     let start = std::time::Instant::now();
+    let mut ran = 0;
     for k in 0..steps {
         world.step();
+        ran = k + 1;
+        let done = args.until_unbalanced.is_some_and(|r| world.unbalanced < r);
+        let last = done || k + 1 == steps;
         if let Some(s) = series.as_mut() {
-            if (k + 1) % args.every == 0 || k + 1 == steps {
+            if (k + 1) % args.every == 0 || last {
                 serde_json::to_writer(&mut *s, &series_line(&world))?;
                 s.write_all(b"\n")?;
             }
         }
         if let Some(s) = snapshots.as_mut() {
-            if (k + 1) % args.vtk_every == 0 || k + 1 == steps {
+            if (k + 1) % args.vtk_every == 0 || last {
                 s.write(&world).context("writing a VTK snapshot")?;
             }
         }
         progress.tick(k + 1, "steps");
+        if done {
+            break;
+        }
     }
+    if let Some(r) = args.until_unbalanced {
+        let ratio = world.unbalanced;
+        if ratio < r {
+            eprintln!("dem: unbalanced-force ratio {ratio:.3e} < {r} after {ran} steps");
+        } else {
+            eprintln!("dem: warning: unbalanced-force ratio still {ratio:.3e} (>= {r}) after the limit of {ran} steps");
+        }
+    }
+    let steps = ran;
     progress.finish();
     if let Some(mut s) = series {
         s.flush()?;

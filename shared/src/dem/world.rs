@@ -170,6 +170,10 @@ pub struct World {
     pub step: u64,
     pub contacts: BTreeMap<ContactKey, Contact>,
     pub energy: Energy,
+    /// Unbalanced-force ratio of the last step: the mean over free bodies of the net force
+    /// (gravity and contacts, before damping) over the mean contact force; infinite with no
+    /// contacts. Derived, not part of the state.
+    pub unbalanced: f64,
 }
 
 /// What the narrow phase hands back for one touching pair.
@@ -198,6 +202,7 @@ impl World {
             step: 0,
             contacts: BTreeMap::new(),
             energy: Energy::default(),
+            unbalanced: f64::INFINITY,
         }
     }
 
@@ -394,7 +399,9 @@ impl World {
         let mut elastic = 0.0;
         let mut wall_power = 0.0;
         let mut contacts = BTreeMap::new();
+        let mut contact_force = 0.0;
         for t in touches {
+            contact_force += t.force.norm();
             let b = t.key.1 as usize;
             force[b] += t.force;
             torque[b] += (t.contact.point - self.bodies[b].pos).cross(&t.force);
@@ -415,6 +422,19 @@ impl World {
             self.energy.friction += t.slip_energy;
             contacts.insert(t.key, t.contact);
         }
+        let free = self.bodies.iter().filter(|b| !b.fixed).count();
+        let net: f64 = self
+            .bodies
+            .iter()
+            .zip(&force)
+            .filter(|(b, _)| !b.fixed)
+            .map(|(_, f)| f.norm())
+            .sum();
+        self.unbalanced = if contacts.is_empty() || free == 0 {
+            f64::INFINITY
+        } else {
+            (net / free as f64) / (contact_force / contacts.len() as f64)
+        };
         self.contacts = contacts;
         self.energy.elastic = elastic;
         self.energy.wall_work += wall_power * dt;
