@@ -4,3 +4,4 @@ bench: build
 	cargo bench --locked -p granular-shared --bench geometry -- --noplot 2>&1 \
 	  | awk '/^geometry\// {name=$$0} /thrpt:/ && name {print name " " $$0; name=""}'
 	pipelines/bench.sh
+	pipelines/bench-dem.sh
