@@ -207,7 +207,10 @@ fn flat_block_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
     let a = 9.81 * (theta.sin() - mu * theta.cos());
     assert!((v / (a * t) - 1.0).abs() < 0.01, "speed {v} vs {}", a * t);
     let x_expected = 0.5 * a * t * t;
-    assert!((x / x_expected - 1.0).abs() < 0.01, "distance {x} vs {x_expected}");
+    assert!(
+        (x / x_expected - 1.0).abs() < 0.01,
+        "distance {x} vs {x_expected}"
+    );
 }
 
 /// KNOWN FAILURE (issue "DEM engine", test 4 with a cube, undamped). A sliding cube must lift

@@ -138,7 +138,11 @@ fn bad_scenes_and_arguments() {
         &scene,
         &["--until-unbalanced must be a positive ratio"],
     );
-    fails(&["--until-unbalanced", "0.01"], &scene, &["--steps N or --time T"]);
+    fails(
+        &["--until-unbalanced", "0.01"],
+        &scene,
+        &["--steps N or --time T"],
+    );
     fails(
         &["--steps", "1"],
         text.replace("\"scale\":0.008", "\"scale\":-1").as_bytes(),
@@ -203,14 +207,23 @@ fn until_unbalanced_stops_early_at_the_ratio() {
     );
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
-    assert!(err.contains("unbalanced-force ratio") && err.contains("< 0.01"), "{err}");
+    assert!(
+        err.contains("unbalanced-force ratio") && err.contains("< 0.01"),
+        "{err}"
+    );
     let text = std::fs::read_to_string(&series).unwrap();
     let _ = std::fs::remove_file(&series);
     let last: serde_json::Value = serde_json::from_str(text.lines().last().unwrap()).unwrap();
-    let (time, ratio) = (last["time"].as_f64().unwrap(), last["unbalanced"].as_f64().unwrap());
+    let (time, ratio) = (
+        last["time"].as_f64().unwrap(),
+        last["unbalanced"].as_f64().unwrap(),
+    );
     assert!(ratio < 0.01, "ratio {ratio}");
     assert!(time < 1.9, "stopped at {time} s");
     // And the state it wrote is that step's.
     let state = String::from_utf8(out.stdout).unwrap();
-    assert!(state.contains(&format!("\"step\":{}", last["step"])), "state at the last step");
+    assert!(
+        state.contains(&format!("\"step\":{}", last["step"])),
+        "state at the last step"
+    );
 }

@@ -247,7 +247,14 @@ impl WallRecord {
         let allowed: &[&str] = match kind {
             "plane" => &["normal", "offset"],
             "facets" => &["nodes", "triangles", "node_velocities", "node_forces"],
-            "cylinder" => &["point", "axis", "radius", "height", "segments", "radial_rate"],
+            "cylinder" => &[
+                "point",
+                "axis",
+                "radius",
+                "height",
+                "segments",
+                "radial_rate",
+            ],
             _ => {
                 return Err(format!(
                     "wall kind '{kind}' is not known (plane, facets, cylinder)"
@@ -281,7 +288,9 @@ impl WallRecord {
                     }
                     let [a, b, c] = t.map(|i| nodes[i as usize]);
                     let area = (b - a).cross(&(c - a)).norm();
-                    if area.is_nan() || area <= 1e-12 * (b - a).norm_squared().max((c - a).norm_squared()) {
+                    if area.is_nan()
+                        || area <= 1e-12 * (b - a).norm_squared().max((c - a).norm_squared())
+                    {
                         return Err(format!("triangle {k} has no area"));
                     }
                 }
@@ -313,7 +322,10 @@ impl WallRecord {
                 let radial_rate = self.radial_rate.unwrap_or(0.0);
                 all_finite(
                     "cylinder",
-                    point.iter().chain(&axis).chain([&radius, &height, &radial_rate]),
+                    point
+                        .iter()
+                        .chain(&axis)
+                        .chain([&radius, &height, &radial_rate]),
                 )?;
                 if radius <= 0.0 || height <= 0.0 {
                     return Err(format!(
@@ -321,7 +333,9 @@ impl WallRecord {
                     ));
                 }
                 if segments < 3 {
-                    return Err(format!("a cylinder needs at least 3 segments (got {segments})"));
+                    return Err(format!(
+                        "a cylinder needs at least 3 segments (got {segments})"
+                    ));
                 }
                 WallKind::Cylinder {
                     point: v3(&point),
@@ -496,7 +510,11 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 if w.id as usize != world.walls.len() {
                     return Err(at(
                         n,
-                        format!("wall id {} out of order (expected {})", w.id, world.walls.len()),
+                        format!(
+                            "wall id {} out of order (expected {})",
+                            w.id,
+                            world.walls.len()
+                        ),
                     ));
                 }
                 world.walls.push(w.to_wall().map_err(|e| at(n, e))?);
@@ -870,15 +888,39 @@ mod tests {
     fn bad_walls_are_named() {
         let good = walled_scene();
         let cases = [
-            (r#""kind":"facets""#, r#""kind":"sphere""#, "wall kind 'sphere' is not known"),
-            (r#""triangles":[[0,1,2],[0,2,3]]"#, r#""triangles":[[0,1,2],[0,2,9]]"#, "triangle 1 uses node 9"),
-            (r#""triangles":[[0,1,2],[0,2,3]]"#, r#""triangles":[[0,1,2],[0,2,2]]"#, "triangle 1 has no area"),
-            (r#"[0,0,1e-4],[0,0,0]]"#, r#"[0,0,1e-4]]"#, "node_velocities has 3 entries for 4 nodes"),
+            (
+                r#""kind":"facets""#,
+                r#""kind":"sphere""#,
+                "wall kind 'sphere' is not known",
+            ),
+            (
+                r#""triangles":[[0,1,2],[0,2,3]]"#,
+                r#""triangles":[[0,1,2],[0,2,9]]"#,
+                "triangle 1 uses node 9",
+            ),
+            (
+                r#""triangles":[[0,1,2],[0,2,3]]"#,
+                r#""triangles":[[0,1,2],[0,2,2]]"#,
+                "triangle 1 has no area",
+            ),
+            (
+                r#"[0,0,1e-4],[0,0,0]]"#,
+                r#"[0,0,1e-4]]"#,
+                "node_velocities has 3 entries for 4 nodes",
+            ),
             (r#""radius":0.01527"#, r#""radius":-1"#, "positive radius"),
             (r#""segments":64"#, r#""segments":2"#, "at least 3 segments"),
-            (r#""axis":[0,0,1]"#, r#""axis":[0,0,2]"#, "axis has length 2"),
+            (
+                r#""axis":[0,0,1]"#,
+                r#""axis":[0,0,2]"#,
+                "axis has length 2",
+            ),
             (r#""axis":[0,0,1],"#, "", "needs 'axis'"),
-            (r#""height":1"#, r#""height":1,"normal":[0,0,1]"#, "a cylinder wall has no field 'normal'"),
+            (
+                r#""height":1"#,
+                r#""height":1,"normal":[0,0,1]"#,
+                "a cylinder wall has no field 'normal'",
+            ),
             (r#""radius":0.01527"#, r#""radius":NaN"#, "line 6"),
         ];
         for (from, to, expect) in cases {

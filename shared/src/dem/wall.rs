@@ -462,7 +462,11 @@ mod tests {
             let b = s.posed(&p, &rot, 1.0);
             let o = wall.touch(&s, &b, s.radius).unwrap().overlap;
             let inward = -(rot * Vec3::x());
-            assert!((o.normal() - inward).norm() < 0.01, "normal {:?}", o.normal());
+            assert!(
+                (o.normal() - inward).norm() < 0.01,
+                "normal {:?}",
+                o.normal()
+            );
             // Sagitta of 0.5 over radius 5 is 0.025: the depth is 0.01 less up to that.
             assert!((o.depth() - 0.01).abs() < 0.025, "depth {}", o.depth());
         }
@@ -475,7 +479,9 @@ mod tests {
             node_velocities, ..
         } = &mut wall.kind
         {
-            node_velocities.iter_mut().for_each(|v| *v = Vec3::new(0.0, 0.0, 0.5));
+            node_velocities
+                .iter_mut()
+                .for_each(|v| *v = Vec3::new(0.0, 0.0, 0.5));
         }
         let (s, b) = cube_at(Vec3::new(0.1, 0.1, 0.49));
         let hit = wall.touch(&s, &b, s.radius).unwrap();

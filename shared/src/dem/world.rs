@@ -21,8 +21,8 @@
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
 
 use super::overlap::{overlap, Overlap};
-use super::wall::Wall;
 use super::shape::{Posed, Shape};
+use super::wall::Wall;
 use crate::math::Vec3;
 use nalgebra::{Unit, UnitQuaternion};
 use rayon::prelude::*;
