@@ -27,3 +27,16 @@ pub fn bounding_box(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
 pub fn extent(points: &[Vec3]) -> f64 {
     bounding_box(points).map_or(0.0, |(lo, hi)| (hi - lo).norm())
 }
+
+/// Two unit vectors completing the unit vector `axis` to a right-handed orthonormal basis
+/// (`axis x helper`, then `axis x` that), the helper being whichever of x and y is farther
+/// from `axis`.
+pub fn basis(axis: &Vec3) -> (Vec3, Vec3) {
+    let helper = if axis.x.abs() < 0.9 {
+        Vec3::x()
+    } else {
+        Vec3::y()
+    };
+    let e1 = axis.cross(&helper).normalize();
+    (e1, axis.cross(&e1))
+}

@@ -111,7 +111,6 @@ fn run(args: Cli) -> anyhow::Result<()> {
 /// The polyhedron plus its construction for a picture: two cells, "NAME: sphere and tangent
 /// planes" and "NAME: polyhedron".
 fn construction(poly: &PolyMesh, points: &[shared::math::Vec3], r: f64) -> Vec<PolyMesh> {
-    use shared::math::Vec3;
     let cell_a = format!("{}: sphere and tangent planes", poly.name);
     let cell_b = format!("{}: polyhedron", poly.name);
     let mut out = Vec::new();
@@ -122,12 +121,7 @@ fn construction(poly: &PolyMesh, points: &[shared::math::Vec3], r: f64) -> Vec<P
     out.push(sphere);
     for (i, p) in points.iter().enumerate() {
         let n = p.normalize();
-        let helper = if n.x.abs() < 0.9 {
-            Vec3::x()
-        } else {
-            Vec3::y()
-        };
-        let u = n.cross(&helper).normalize() * (0.6 * r);
+        let u = shared::math::basis(&n).0 * (0.6 * r);
         let w = n.cross(&u);
         let c = p * 1.002;
         let mut patch = PolyMesh::from_faces(

@@ -177,12 +177,12 @@ fn clip_faces(
         }
         for &j in &cutting {
             let (n, d) = (&y.normals[j], y.offsets[j]);
+            if box_excess(n, d, &flo, &fhi) <= 0.0 {
+                continue;
+            }
             if !x_is_b && coplanar(n, d, &x.normals[f], x.offsets[f], size) {
                 // B's face on this plane is skipped (above), so A's face must stay whole
                 // against it, or that side of the overlap would have no boundary at all.
-                continue;
-            }
-            if box_excess(n, d, &flo, &fhi) <= 0.0 {
                 continue;
             }
             if box_excess(&-n, -d, &flo, &fhi) < 0.0 {

@@ -3,9 +3,9 @@
 //! the sliding flag), walls (a square patch of each plane), and a `.pvd` collection per stream
 //! that ParaView opens as a time series. ASCII, so the files are readable and diffable.
 
-use super::wall::{basis, WallKind};
+use super::wall::WallKind;
 use super::world::{Partner, World};
-use crate::math::Vec3;
+use crate::math::{basis, Vec3};
 use std::fmt::Write as _;
 use std::io::Write;
 use std::path::{Path, PathBuf};

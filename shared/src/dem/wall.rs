@@ -17,7 +17,7 @@
 
 use super::overlap::{overlap_half_space, overlap_parts, Overlap};
 use super::shape::{Posed, Shape};
-use crate::math::Vec3;
+use crate::math::{basis, Vec3};
 use nalgebra::UnitQuaternion;
 use std::sync::OnceLock;
 
@@ -124,15 +124,21 @@ impl Wall {
             } => {
                 let mut sum = Sum::default();
                 let mut pieces = Vec::new();
+                let misses =
+                    |lo: &Vec3, hi: &Vec3| (0..3).any(|k| lo[k] > b.hi[k] || b.lo[k] > hi[k]);
+                let reach = Vec3::repeat(2.0 * radius);
                 for t in triangles {
                     let q = t.map(|i| nodes[i as usize]);
-                    // Quick reject: the prism's box misses the body's box.
-                    let n = (q[1] - q[0]).cross(&(q[2] - q[0])).normalize();
-                    let back = -n * (2.0 * radius);
+                    // Quick reject: the prism's box misses the body's box (first the triangle's
+                    // box grown by the prism's depth every way, then the prism's own).
                     let lo = q[0].inf(&q[1]).inf(&q[2]);
                     let hi = q[0].sup(&q[1]).sup(&q[2]);
-                    let (lo, hi) = (lo.inf(&(lo + back)), hi.sup(&(hi + back)));
-                    if (0..3).any(|k| lo[k] > b.hi[k] || b.lo[k] > hi[k]) {
+                    if misses(&(lo - reach), &(hi + reach)) {
+                        continue;
+                    }
+                    let n = (q[1] - q[0]).cross(&(q[2] - q[0])).normalize();
+                    let back = -n * (2.0 * radius);
+                    if misses(&lo.inf(&(lo + back)), &hi.sup(&(hi + back))) {
                         continue;
                     }
                     if let Some((v, c, cap)) = facet_overlap(&q, &n, 2.0 * radius, s, b) {
@@ -288,19 +294,7 @@ impl Sum {
     }
 }
 
-/// Two unit vectors completing `axis` to a right-handed basis.
-pub fn basis(axis: &Vec3) -> (Vec3, Vec3) {
-    let helper = if axis.x.abs() < 0.9 {
-        Vec3::x()
-    } else {
-        Vec3::y()
-    };
-    let e1 = axis.cross(&helper).normalize();
-    (e1, axis.cross(&e1))
-}
-
-/// Barycentric weights of `p` (projected) in the polygon's first triangle, clamped and
-/// renormalised; for a quad (a cylinder segment) only the triangles matter through the caller.
+/// Barycentric weights of `p` (projected onto the triangle's plane), clamped and renormalised.
 fn barycentric(q: &[Vec3; 3], p: &Vec3) -> [f64; 3] {
     let (e0, e1, ep) = (q[1] - q[0], q[2] - q[0], p - q[0]);
     let (d00, d01, d11) = (e0.dot(&e0), e0.dot(&e1), e1.dot(&e1));

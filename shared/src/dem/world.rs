@@ -422,19 +422,7 @@ impl World {
             self.energy.friction += t.slip_energy;
             contacts.insert(t.key, t.contact);
         }
-        let free = self.bodies.iter().filter(|b| !b.fixed).count();
-        let net: f64 = self
-            .bodies
-            .iter()
-            .zip(&force)
-            .filter(|(b, _)| !b.fixed)
-            .map(|(_, f)| f.norm())
-            .sum();
-        self.unbalanced = if contacts.is_empty() || free == 0 {
-            f64::INFINITY
-        } else {
-            (net / free as f64) / (contact_force / contacts.len() as f64)
-        };
+        let mean_contact_force = contact_force / contacts.len() as f64;
         self.contacts = contacts;
         self.energy.elastic = elastic;
         self.energy.wall_work += wall_power * dt;
@@ -442,10 +430,13 @@ impl World {
         let alpha = self.material.damping;
         let g = self.gravity;
         let (mut kinetic, mut damping, mut gravity_work) = (0.0, 0.0, 0.0);
+        let (mut free, mut net) = (0usize, 0.0);
         for (i, b) in self.bodies.iter_mut().enumerate() {
             if b.fixed {
                 continue;
             }
+            free += 1;
+            net += force[i].norm();
             let omega = b.omega();
             let (mut f, mut m) = (force[i], torque[i]);
             let (df, dm) = (
@@ -467,6 +458,11 @@ impl World {
         for w in &mut self.walls {
             w.advance(dt);
         }
+        self.unbalanced = if self.contacts.is_empty() || free == 0 {
+            f64::INFINITY
+        } else {
+            (net / free as f64) / mean_contact_force
+        };
         self.energy.kinetic = kinetic;
         self.energy.damping += damping;
         self.energy.gravity_work += gravity_work;
