@@ -12,8 +12,12 @@
 //! When one body lies inside the other, `S_B` vanishes; then the normal is the line of centroids
 //! and the depth the penetration along it, so even the deepest overlap pushes the bodies apart.
 //!
-//! Cost is kept near the contact: both bodies' faces are first clipped to the intersection of
-//! the two bounding boxes, and only the planes that cut that box are applied.
+//! Cost is kept near the contact. Along an axis (the contact's last normal, else the line
+//! between the bounding-box centres) the overlap lies in the slab between B's lowest and A's
+//! highest vertex: an empty slab separates the bodies at once, and for a touching pair it is as
+//! thin as the penetration. Faces are culled by that slab and the intersection of the two
+//! bounding boxes, clipped to them (half-spaces holding `A ∩ B` leave it unchanged), and then
+//! only the planes of the other body that cut the box are applied.
 
 use super::shape::{Posed, Shape};
 use crate::math::Vec3;
@@ -74,25 +78,51 @@ impl Acc {
     }
 }
 
-/// Clips a convex polygon to the half-space `n . x <= d`, into `out`.
-fn clip(poly: &[Vec3], n: &Vec3, d: f64, out: &mut Vec<Vec3>) {
-    out.clear();
-    let len = poly.len();
-    for i in 0..len {
-        let (p, q) = (poly[i], poly[(i + 1) % len]);
-        let (sp, sq) = (n.dot(&p) - d, n.dot(&q) - d);
-        if sp <= 0.0 {
-            out.push(p);
-        }
-        if (sp < 0.0 && sq > 0.0) || (sp > 0.0 && sq < 0.0) {
-            out.push(p + (q - p) * (sp / (sp - sq)));
-        }
-    }
+/// Reusable buffers of the clipping, one set per thread.
+#[derive(Default)]
+struct Scratch {
+    poly: Vec<Vec3>,
+    tmp: Vec<Vec3>,
+    dist: Vec<f64>,
+    codes: Vec<u8>,
+    cutting: Vec<u32>,
 }
 
-/// The six half-spaces of a box as (normal, offset).
-fn box_planes(lo: &Vec3, hi: &Vec3) -> [(Vec3, f64); 6] {
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
+}
+
+/// Clips the convex polygon `poly` to the half-space `n . x <= d` in place (`tmp` and `dist`
+/// are scratch); false when less than a polygon is left. A polygon wholly inside is left as it
+/// is, without copying.
+fn clip(poly: &mut Vec<Vec3>, tmp: &mut Vec<Vec3>, dist: &mut Vec<f64>, n: &Vec3, d: f64) -> bool {
+    dist.clear();
+    dist.extend(poly.iter().map(|p| n.dot(p) - d));
+    if dist.iter().all(|&s| s <= 0.0) {
+        return poly.len() >= 3;
+    }
+    tmp.clear();
+    let len = poly.len();
+    for i in 0..len {
+        let k = if i + 1 == len { 0 } else { i + 1 };
+        let (p, q, sp, sq) = (poly[i], poly[k], dist[i], dist[k]);
+        if sp <= 0.0 {
+            tmp.push(p);
+        }
+        if (sp < 0.0 && sq > 0.0) || (sp > 0.0 && sq < 0.0) {
+            tmp.push(p + (q - p) * (sp / (sp - sq)));
+        }
+    }
+    std::mem::swap(poly, tmp);
+    poly.len() >= 3
+}
+
+/// The culling half-spaces as (normal, offset): the slab `lo_n <= n . x <= hi_n` first (the
+/// tightest for a touching pair), then the six of the box.
+fn bound_planes(n: &Vec3, lo_n: f64, hi_n: f64, lo: &Vec3, hi: &Vec3) -> [(Vec3, f64); 8] {
     [
+        (*n, hi_n),
+        (-n, -lo_n),
         (Vec3::x(), hi.x),
         (-Vec3::x(), -lo.x),
         (Vec3::y(), hi.y),
@@ -122,32 +152,50 @@ fn coplanar(n1: &Vec3, d1: f64, n2: &Vec3, d2: f64, size: f64) -> bool {
 }
 
 #[allow(clippy::too_many_arguments)]
-/// Clips the faces of `x` (a posed `sx`) to `y`'s half-spaces within the box, adding the pieces.
+/// Clips the faces of `x` (a posed `sx`) to the bounds and to `y`'s half-spaces that cut the
+/// box `lo..hi`, adding the pieces.
 fn clip_faces(
     sx: &Shape,
     x: &Posed,
     y: &Posed,
     lo: &Vec3,
     hi: &Vec3,
+    bounds: &[(Vec3, f64); 8],
     x_is_b: bool,
     acc: &mut Acc,
     size: f64,
+    sc: &mut Scratch,
 ) {
-    let cutting: Vec<usize> = (0..y.normals.len())
-        .filter(|&j| box_excess(&y.normals[j], y.offsets[j], lo, hi) > 0.0)
-        .collect();
-    let bounds = box_planes(lo, hi);
-    let (mut poly, mut tmp) = (Vec::with_capacity(16), Vec::with_capacity(16));
+    let Scratch {
+        poly,
+        tmp,
+        dist,
+        codes,
+        cutting,
+    } = sc;
+    // Which bounds each vertex lies outside of: a face outside one bound with all its vertices
+    // is culled, and a bound that none of its vertices lies outside of cannot clip it.
+    codes.clear();
+    codes.extend(x.vertices.iter().map(|v| {
+        bounds
+            .iter()
+            .enumerate()
+            .fold(0u8, |c, (k, (bn, bd))| c | (u8::from(bn.dot(v) > *bd) << k))
+    }));
+    cutting.clear();
+    cutting.extend(
+        (0..y.normals.len() as u32)
+            .filter(|&j| box_excess(&y.normals[j as usize], y.offsets[j as usize], lo, hi) > 0.0),
+    );
     'faces: for f in 0..sx.face_count() {
         let idx = sx.face(f);
-        let n = &x.normals[f];
-        // Quick reject: face entirely outside the box.
-        if bounds
-            .iter()
-            .any(|(bn, bd)| idx.iter().all(|&i| bn.dot(&x.vertices[i as usize]) > *bd))
-        {
+        let (all, any) = idx.iter().fold((u8::MAX, 0u8), |(all, any), &i| {
+            (all & codes[i as usize], any | codes[i as usize])
+        });
+        if all != 0 {
             continue;
         }
+        let n = &x.normals[f];
         if x_is_b {
             // B's face lying on one of A's faces, facing the same way: A's piece covers it.
             for j in 0..y.normals.len() {
@@ -158,25 +206,19 @@ fn clip_faces(
         }
         poly.clear();
         poly.extend(idx.iter().map(|&i| x.vertices[i as usize]));
-        // The face's own box: a half-space that holds it changes nothing; one that misses it
-        // leaves nothing. Either way no clipping is needed.
+        for (k, (bn, bd)) in bounds.iter().enumerate() {
+            if any & (1 << k) != 0 && !clip(poly, tmp, dist, bn, *bd) {
+                continue 'faces;
+            }
+        }
+        // The box of what is left: a plane that holds it changes nothing.
         let (mut flo, mut fhi) = (poly[0], poly[0]);
         for p in &poly[1..] {
             flo = flo.inf(p);
             fhi = fhi.sup(p);
         }
-        for (bn, bd) in &bounds {
-            if box_excess(bn, *bd, &flo, &fhi) <= 0.0 {
-                continue;
-            }
-            clip(&poly, bn, *bd, &mut tmp);
-            std::mem::swap(&mut poly, &mut tmp);
-            if poly.len() < 3 {
-                continue 'faces;
-            }
-        }
-        for &j in &cutting {
-            let (n, d) = (&y.normals[j], y.offsets[j]);
+        for &j in cutting.iter() {
+            let (n, d) = (&y.normals[j as usize], y.offsets[j as usize]);
             if box_excess(n, d, &flo, &fhi) <= 0.0 {
                 continue;
             }
@@ -185,16 +227,11 @@ fn clip_faces(
                 // against it, or that side of the overlap would have no boundary at all.
                 continue;
             }
-            if box_excess(&-n, -d, &flo, &fhi) < 0.0 {
-                continue 'faces; // the whole face is outside this half-space
-            }
-            clip(&poly, n, d, &mut tmp);
-            std::mem::swap(&mut poly, &mut tmp);
-            if poly.len() < 3 {
+            if !clip(poly, tmp, dist, n, d) {
                 continue 'faces;
             }
         }
-        let area = acc.piece(&poly, x_is_b);
+        let area = acc.piece(poly, x_is_b);
         if !x_is_b && f == 0 {
             acc.cap_a = area;
         }
@@ -203,7 +240,18 @@ fn clip_faces(
 
 /// The overlap of posed shapes A and B, or `None` when they do not overlap (zero volume).
 pub fn overlap(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed) -> Option<Overlap> {
-    let (mut o, _) = overlap_parts(sa, a, sb, b)?;
+    overlap_along(sa, a, sb, b, &centre_line(a, b))
+}
+
+/// From the centre of A's bounding box to B's: the culling axis when no better one is known.
+pub fn centre_line(a: &Posed, b: &Posed) -> Vec3 {
+    (b.lo + b.hi - a.lo - a.hi) * 0.5
+}
+
+/// [`overlap`] with the culling slab across `axis` (any non-zero vector; best the last contact
+/// normal from A to B). The result does not depend on the axis beyond round-off.
+pub fn overlap_along(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, axis: &Vec3) -> Option<Overlap> {
+    let (mut o, _) = overlap_parts(sa, a, sb, b, axis)?;
     if o.area_b.norm() <= SWALLOWED_REL * o.volume.powf(2.0 / 3.0) {
         // One body (nearly) inside the other: S_B vanishes and gives no direction. Push apart
         // along the line of centroids, by the penetration along it (separating-axis overlap).
@@ -219,27 +267,45 @@ pub(crate) fn overlap_parts(
     a: &Posed,
     sb: &Shape,
     b: &Posed,
+    axis: &Vec3,
 ) -> Option<(Overlap, Vec3)> {
     let lo = a.lo.sup(&b.lo);
     let hi = a.hi.inf(&b.hi);
     if lo.x >= hi.x || lo.y >= hi.y || lo.z >= hi.z {
         return None;
     }
+    let len = axis.norm();
+    let n = if len > 0.0 && len.is_finite() {
+        axis / len
+    } else {
+        Vec3::z()
+    };
+    let (hi_n, lo_n) = reach(a, b, &n);
+    if lo_n >= hi_n {
+        return None; // `n` separates the bodies
+    }
     let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
+    // Reference point for the divergence sums: the box centre moved onto the slab's middle
+    // plane, near every piece of a thin overlap (a distant one makes the sums cancel).
+    let centre = (lo + hi) * 0.5;
     let mut acc = Acc {
-        reference: (lo + hi) * 0.5,
+        reference: centre + n * ((lo_n + hi_n) * 0.5 - n.dot(&centre)),
         ..Default::default()
     };
     // The box only culls; padded by the coplanar band so that a face of A that the band
     // keeps (B's same-plane face being skipped) is not cut away by the box instead.
-    let pad = Vec3::repeat(COPLANAR_REL * size);
-    let (lo, hi) = (lo - pad, hi + pad);
-    clip_faces(sa, a, b, &lo, &hi, false, &mut acc, size);
-    clip_faces(sb, b, a, &lo, &hi, true, &mut acc, size);
+    let pad = COPLANAR_REL * size;
+    let (lo, hi) = (lo - Vec3::repeat(pad), hi + Vec3::repeat(pad));
+    let bounds = bound_planes(&n, lo_n - pad, hi_n + pad, &lo, &hi);
+    SCRATCH.with_borrow_mut(|sc| {
+        clip_faces(sa, a, b, &lo, &hi, &bounds, false, &mut acc, size, sc);
+        clip_faces(sb, b, a, &lo, &hi, &bounds, true, &mut acc, size, sc);
+    });
     let volume = acc.volume6 / 6.0;
     if volume.is_nan() || volume <= 0.0 {
         return None;
     }
+
     let centroid = acc.reference + acc.moment24 / (4.0 * acc.volume6);
     Some((
         Overlap {
@@ -249,6 +315,18 @@ pub(crate) fn overlap_parts(
         },
         acc.cap_a,
     ))
+}
+
+/// How far A reaches along `n` and where B starts: they overlap along `n` when B starts first.
+fn reach(a: &Posed, b: &Posed, n: &Vec3) -> (f64, f64) {
+    let along = |v: &Vec3| n.dot(v);
+    (
+        a.vertices
+            .iter()
+            .map(along)
+            .fold(f64::NEG_INFINITY, f64::max),
+        b.vertices.iter().map(along).fold(f64::INFINITY, f64::min),
+    )
 }
 
 /// Below this `|S_B| / V^(2/3)` one body is taken as swallowed by the other.
@@ -264,16 +342,7 @@ fn swallowed(a: &Posed, b: &Posed, volume: f64) -> Vec3 {
     } else {
         Vec3::z()
     };
-    let reach_a = a
-        .vertices
-        .iter()
-        .map(|v| n.dot(v))
-        .fold(f64::NEG_INFINITY, f64::max);
-    let start_b = b
-        .vertices
-        .iter()
-        .map(|v| n.dot(v))
-        .fold(f64::INFINITY, f64::min);
+    let (reach_a, start_b) = reach(a, b, &n);
     let depth = (reach_a - start_b).max(f64::MIN_POSITIVE);
     -n * (volume / depth)
 }
@@ -291,13 +360,28 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
         reference: n * d,
         ..Default::default()
     };
-    let (mut poly, mut tmp) = (Vec::with_capacity(16), Vec::with_capacity(16));
-    for f in 0..sb.face_count() {
-        poly.clear();
-        poly.extend(sb.face(f).iter().map(|&i| b.vertices[i as usize]));
-        clip(&poly, n, d, &mut tmp);
-        let _ = acc.piece(&tmp, true);
-    }
+    SCRATCH.with_borrow_mut(|sc| {
+        let Scratch {
+            poly,
+            tmp,
+            dist,
+            codes,
+            ..
+        } = sc;
+        codes.clear();
+        codes.extend(b.vertices.iter().map(|v| u8::from(n.dot(v) > d)));
+        for f in 0..sb.face_count() {
+            let idx = sb.face(f);
+            if idx.iter().all(|&i| codes[i as usize] == 1) {
+                continue; // wholly outside the wall
+            }
+            poly.clear();
+            poly.extend(idx.iter().map(|&i| b.vertices[i as usize]));
+            if clip(poly, tmp, dist, n, d) {
+                let _ = acc.piece(poly, true);
+            }
+        }
+    });
     let volume = acc.volume6 / 6.0;
     if volume.is_nan() || volume <= 0.0 {
         return None;

@@ -860,13 +860,22 @@ mod tests {
     fn facet_and_cylinder_walls_round_trip_exactly() {
         let mut w = read_world(walled_scene().as_bytes()).unwrap();
         w.dt = 0.2 * w.critical_dt();
+        // Body 0 comes to rest on the facets and the shrinking cylinder reaches the bodies
+        // (first after about 20 000 steps; the contact is light and comes and goes).
+        let both = |w: &World| {
+            w.contacts.contains_key(&(Partner::Wall(0), 0))
+                && w.contacts.keys().any(|k| k.0 == Partner::Wall(1))
+        };
         for _ in 0..20_000 {
             w.step();
         }
-        // Body 0 rests on the facets; the shrinking cylinder has reached the bodies.
-        let keys: Vec<_> = w.contacts.keys().collect();
-        assert!(keys.contains(&&(Partner::Wall(0), 0)), "{keys:?}");
-        assert!(keys.iter().any(|k| k.0 == Partner::Wall(1)), "{keys:?}");
+        for _ in 0..20_000 {
+            if both(&w) {
+                break;
+            }
+            w.step();
+        }
+        assert!(both(&w), "{:?}", w.contacts.keys().collect::<Vec<_>>());
         let mut a = Vec::new();
         write_world(&w, &mut a).unwrap();
         let mut back = read_world(a.as_slice()).unwrap();

@@ -368,7 +368,7 @@ fn facet_overlap<const K: usize>(
         lo,
         hi,
     };
-    let (o, cap) = overlap_parts(prism(K), &posed, sb, b)?;
+    let (o, cap) = overlap_parts(prism(K), &posed, sb, b, n)?;
     Some((o.volume, o.centroid, cap))
 }
 
