@@ -1,6 +1,7 @@
 //! The DEM engine for rigid convex polyhedra (work in progress; see issue "DEM engine").
 //!
 //! - [`shape`]: convex templates in their principal frame.
+//! - [`gjk`]: a certified separation test for pairs whose boxes overlap.
 //! - [`overlap`]: contact geometry from the overlap polyhedron (normal, depth, point).
 //! - [`world`]: bodies, walls, the contact law, the integrator and the energy audit.
 //! - [`state`]: scenes and restartable states as JSON lines.
@@ -8,6 +9,7 @@
 //! - [`vtk`]: snapshots for ParaView.
 //! - [`wall`]: planes, facets with moving nodes, cylinders.
 
+pub mod gjk;
 pub mod overlap;
 pub mod peer;
 pub mod shape;

@@ -84,9 +84,19 @@ struct Scratch {
     poly: Vec<Vec3>,
     tmp: Vec<Vec3>,
     dist: Vec<f64>,
-    codes: Vec<u8>,
-    cutting: Vec<u32>,
+    /// Per vertex of the body being clipped, which planes it lies outside of (bits 0..8: the
+    /// bounds, then the first [`CODED`] cutting planes), or [`UNCODED`] until needed.
+    codes: Vec<u64>,
+    /// Faces of A and B that meet the slab, and those of them whose planes cut the box.
+    faces_a: Vec<u32>,
+    faces_b: Vec<u32>,
+    planes_a: Vec<u32>,
+    planes_b: Vec<u32>,
 }
+
+/// Cutting planes beyond this many are tested face by face instead of by vertex codes.
+const CODED: usize = 55;
+const UNCODED: u64 = 1 << 63;
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
@@ -152,56 +162,75 @@ fn coplanar(n1: &Vec3, d1: f64, n2: &Vec3, d2: f64, size: f64) -> bool {
 }
 
 #[allow(clippy::too_many_arguments)]
-/// Clips the faces of `x` (a posed `sx`) to the bounds and to `y`'s half-spaces that cut the
-/// box `lo..hi`, adding the pieces.
+/// Clips the `faces` of `x` (a posed `sx`) to the bounds and to `y`'s `planes`, adding the
+/// pieces. For B (`x_is_b`), a face on one of A's `coplanar_with` planes is left to A.
 fn clip_faces(
     sx: &Shape,
     x: &Posed,
+    faces: &[u32],
     y: &Posed,
-    lo: &Vec3,
-    hi: &Vec3,
+    planes: &[u32],
+    coplanar_with: &[u32],
     bounds: &[(Vec3, f64); 8],
     x_is_b: bool,
     acc: &mut Acc,
     size: f64,
-    sc: &mut Scratch,
+    buffers: (&mut Vec<Vec3>, &mut Vec<Vec3>, &mut Vec<f64>, &mut Vec<u64>),
 ) {
-    let Scratch {
-        poly,
-        tmp,
-        dist,
-        codes,
-        cutting,
-    } = sc;
-    // Which bounds each vertex lies outside of: a face outside one bound with all its vertices
-    // is culled, and a bound that none of its vertices lies outside of cannot clip it.
+    let (poly, tmp, dist, codes) = buffers;
+    // Which planes each vertex lies outside of, computed when a face first needs the vertex:
+    // a face outside one plane with all its vertices is culled, and a plane that none of its
+    // vertices lies outside of cannot clip it.
+    let coded = planes.len().min(CODED);
     codes.clear();
-    codes.extend(x.vertices.iter().map(|v| {
-        bounds
-            .iter()
-            .enumerate()
-            .fold(0u8, |c, (k, (bn, bd))| c | (u8::from(bn.dot(v) > *bd) << k))
-    }));
-    cutting.clear();
-    cutting.extend(
-        (0..y.normals.len() as u32)
-            .filter(|&j| box_excess(&y.normals[j as usize], y.offsets[j as usize], lo, hi) > 0.0),
-    );
-    'faces: for f in 0..sx.face_count() {
+    codes.resize(x.vertices.len(), UNCODED);
+    'faces: for &f in faces {
+        let f = f as usize;
         let idx = sx.face(f);
-        let (all, any) = idx.iter().fold((u8::MAX, 0u8), |(all, any), &i| {
-            (all & codes[i as usize], any | codes[i as usize])
-        });
-        if all != 0 {
-            continue;
-        }
         let n = &x.normals[f];
         if x_is_b {
             // B's face lying on one of A's faces, facing the same way: A's piece covers it.
-            for j in 0..y.normals.len() {
+            for &j in coplanar_with {
+                let j = j as usize;
                 if coplanar(&y.normals[j], y.offsets[j], n, x.offsets[f], size) {
                     continue 'faces;
                 }
+            }
+        }
+        let (mut all, mut any) = (u64::MAX, 0u64);
+        for &i in idx {
+            let c = &mut codes[i as usize];
+            if *c == UNCODED {
+                let v = &x.vertices[i as usize];
+                let out = |(k, (m, d)): (usize, (&Vec3, f64))| u64::from(m.dot(v) > d) << k;
+                *c = bounds
+                    .iter()
+                    .map(|(m, d)| (m, *d))
+                    .enumerate()
+                    .map(out)
+                    .sum::<u64>()
+                    | planes[..coded]
+                        .iter()
+                        .map(|&j| (&y.normals[j as usize], y.offsets[j as usize]))
+                        .enumerate()
+                        .map(|(k, p)| out((k + 8, p)))
+                        .sum::<u64>();
+            }
+            all &= *c;
+            any |= *c;
+        }
+        // A's face on one of B's planes stays whole against it (B's face there is skipped
+        // above, or that side of the overlap would have no boundary at all).
+        let keeps = |j: u32| {
+            let j = j as usize;
+            !x_is_b && coplanar(&y.normals[j], y.offsets[j], n, x.offsets[f], size)
+        };
+        let mut bits = all;
+        while bits != 0 {
+            let k = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if k < 8 || !keeps(planes[k - 8]) {
+                continue 'faces; // wholly outside one plane
             }
         }
         poly.clear();
@@ -217,17 +246,14 @@ fn clip_faces(
             flo = flo.inf(p);
             fhi = fhi.sup(p);
         }
-        for &j in cutting.iter() {
-            let (n, d) = (&y.normals[j as usize], y.offsets[j as usize]);
-            if box_excess(n, d, &flo, &fhi) <= 0.0 {
+        let coded_cuts = (0..coded).filter(|&k| any & (1 << (k + 8)) != 0);
+        for k in coded_cuts.chain(coded..planes.len()) {
+            let j = planes[k];
+            let (m, d) = (&y.normals[j as usize], y.offsets[j as usize]);
+            if box_excess(m, d, &flo, &fhi) <= 0.0 || keeps(j) {
                 continue;
             }
-            if !x_is_b && coplanar(n, d, &x.normals[f], x.offsets[f], size) {
-                // B's face on this plane is skipped (above), so A's face must stay whole
-                // against it, or that side of the overlap would have no boundary at all.
-                continue;
-            }
-            if !clip(poly, tmp, dist, n, d) {
+            if !clip(poly, tmp, dist, m, d) {
                 continue 'faces;
             }
         }
@@ -238,9 +264,39 @@ fn clip_faces(
     }
 }
 
+/// The faces of `s` (posed as `p`) around the vertices whose height along `n` passes `keep`,
+/// ascending, into `out`.
+fn faces_around(s: &Shape, p: &Posed, n: &Vec3, keep: impl Fn(f64) -> bool, out: &mut Vec<u32>) {
+    out.clear();
+    for (i, v) in p.vertices.iter().enumerate() {
+        if keep(n.dot(v)) {
+            out.extend_from_slice(s.faces_at(i));
+        }
+    }
+    out.sort_unstable();
+    out.dedup();
+}
+
 /// The overlap of posed shapes A and B, or `None` when they do not overlap (zero volume).
+/// A pair never in contact is first tested for a gap (see [`apart`]), the cheap answer for
+/// the many pairs whose boxes overlap while the bodies do not.
 pub fn overlap(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed) -> Option<Overlap> {
-    overlap_along(sa, a, sb, b, &centre_line(a, b))
+    let axis = centre_line(a, b);
+    if apart(a, b, &axis) {
+        return None;
+    }
+    overlap_along(sa, a, sb, b, &axis)
+}
+
+/// Gaps below this fraction of the larger body's box diagonal are left to the exact overlap.
+const APART_REL: f64 = 1e-9;
+
+/// True when GJK certifies a gap of more than `APART_REL` x size between A and B, starting
+/// from `start`: then the exact overlap (whose round-off is ~1e-16 x size) is empty too, so
+/// taking this shortcut or not gives the same result.
+pub fn apart(a: &Posed, b: &Posed, start: &Vec3) -> bool {
+    let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
+    super::gjk::separated(&a.vertices, &b.vertices, start, APART_REL * size)
 }
 
 /// From the centre of A's bounding box to B's: the culling axis when no better one is known.
@@ -298,8 +354,37 @@ pub(crate) fn overlap_parts(
     let (lo, hi) = (lo - Vec3::repeat(pad), hi + Vec3::repeat(pad));
     let bounds = bound_planes(&n, lo_n - pad, hi_n + pad, &lo, &hi);
     SCRATCH.with_borrow_mut(|sc| {
-        clip_faces(sa, a, b, &lo, &hi, &bounds, false, &mut acc, size, sc);
-        clip_faces(sb, b, a, &lo, &hi, &bounds, true, &mut acc, size, sc);
+        let Scratch {
+            poly,
+            tmp,
+            dist,
+            codes,
+            faces_a,
+            faces_b,
+            planes_a,
+            planes_b,
+        } = sc;
+        // Only faces that meet the slab can bound the overlap: a face of A reaches into it
+        // exactly when one of its vertices does. Within the slab, B is the intersection of
+        // the half-spaces of its faces that meet the slab (the others hold B ∩ slab), and
+        // of those only the planes that cut the box matter.
+        let (lo_n, hi_n) = (lo_n - pad, hi_n + pad);
+        faces_around(sa, a, &n, |h| h >= lo_n, faces_a);
+        faces_around(sb, b, &n, |h| h <= hi_n, faces_b);
+        let cuts = |p: &Posed, faces: &[u32], out: &mut Vec<u32>| {
+            out.clear();
+            out.extend(faces.iter().copied().filter(|&j| {
+                box_excess(&p.normals[j as usize], p.offsets[j as usize], &lo, &hi) > 0.0
+            }));
+        };
+        cuts(a, faces_a, planes_a);
+        cuts(b, faces_b, planes_b);
+        let buffers = (poly, tmp, dist, codes);
+        #[rustfmt::skip]
+        clip_faces(sa, a, faces_a, b, planes_b, &[], &bounds, false, &mut acc, size,
+            (buffers.0, buffers.1, buffers.2, buffers.3));
+        #[rustfmt::skip]
+        clip_faces(sb, b, faces_b, a, planes_a, faces_a, &bounds, true, &mut acc, size, buffers);
     });
     let volume = acc.volume6 / 6.0;
     if volume.is_nan() || volume <= 0.0 {
@@ -369,7 +454,7 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
             ..
         } = sc;
         codes.clear();
-        codes.extend(b.vertices.iter().map(|v| u8::from(n.dot(v) > d)));
+        codes.extend(b.vertices.iter().map(|v| u64::from(n.dot(v) > d)));
         for f in 0..sb.face_count() {
             let idx = sb.face(f);
             if idx.iter().all(|&i| codes[i as usize] == 1) {

@@ -29,6 +29,9 @@ pub struct Shape {
     pub vertices: Vec<Vec3>,
     pub face_start: Vec<u32>,
     pub face_verts: Vec<u32>,
+    /// The faces around each vertex (compressed rows: see [`incidence`]).
+    pub vertex_face_start: Vec<u32>,
+    pub vertex_faces: Vec<u32>,
     /// Unit outward normal and offset of each face: `n . x <= d` inside.
     pub normals: Vec<Vec3>,
     pub offsets: Vec<f64>,
@@ -66,11 +69,14 @@ impl Shape {
             .collect();
         let radius = vertices.iter().map(|v| v.norm()).fold(0.0, f64::max);
         let frame = UnitQuaternion::from_matrix(&rot);
+        let (vertex_face_start, vertex_faces) = incidence(&h.mesh.face_start, &h.mesh.face_verts);
         Ok(Shape {
             name: mesh.name.clone(),
             vertices,
             face_start: h.mesh.face_start,
             face_verts: h.mesh.face_verts,
+            vertex_face_start,
+            vertex_faces,
             normals,
             offsets,
             volume: props.volume,
@@ -89,6 +95,12 @@ impl Shape {
     /// Vertex indices of face `f`.
     pub fn face(&self, f: usize) -> &[u32] {
         &self.face_verts[self.face_start[f] as usize..self.face_start[f + 1] as usize]
+    }
+
+    /// Faces around vertex `v`.
+    pub fn faces_at(&self, v: usize) -> &[u32] {
+        &self.vertex_faces
+            [self.vertex_face_start[v] as usize..self.vertex_face_start[v + 1] as usize]
     }
 
     /// The shape scaled by `scale`, rotated by `rot` and moved to `pos`, in world coordinates.
@@ -115,6 +127,32 @@ impl Shape {
             hi,
         }
     }
+}
+
+/// The faces around each vertex of the faces `face_start`/`face_verts`, as compressed rows:
+/// vertex `v`'s faces are `faces[start[v]..start[v + 1]]`, ascending.
+pub fn incidence(face_start: &[u32], face_verts: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    let count = face_verts
+        .iter()
+        .map(|&v| v as usize + 1)
+        .max()
+        .unwrap_or(0);
+    let mut start = vec![0u32; count + 1];
+    for &v in face_verts {
+        start[v as usize + 1] += 1;
+    }
+    for v in 0..count {
+        start[v + 1] += start[v];
+    }
+    let mut next = start.clone();
+    let mut faces = vec![0u32; face_verts.len()];
+    for f in 0..face_start.len().saturating_sub(1) {
+        for &v in &face_verts[face_start[f] as usize..face_start[f + 1] as usize] {
+            faces[next[v as usize] as usize] = f as u32;
+            next[v as usize] += 1;
+        }
+    }
+    (start, faces)
 }
 
 /// Principal axes of a symmetric inertia tensor: a proper rotation whose columns are the axes
@@ -177,6 +215,20 @@ mod tests {
         );
         assert_relative_eq!(s.radius, 0.75f64.sqrt(), epsilon = 1e-12);
         assert_eq!(s.face_count(), 6);
+    }
+
+    #[test]
+    fn every_cube_vertex_has_its_three_faces() {
+        let s = Shape::from_mesh(&cube(0.5)).unwrap();
+        for v in 0..s.vertices.len() {
+            let around = s.faces_at(v);
+            assert_eq!(around.len(), 3, "vertex {v}: {around:?}");
+            for &f in around {
+                assert!(s.face(f as usize).contains(&(v as u32)));
+            }
+        }
+        let total: usize = (0..s.vertices.len()).map(|v| s.faces_at(v).len()).sum();
+        assert_eq!(total, s.face_verts.len());
     }
 
     #[test]

@@ -659,11 +659,14 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
         // The exact principal form written by dem: taken as it is.
         let face_start = std::mem::take(&mut mesh.face_start);
         let face_verts = std::mem::take(&mut mesh.face_verts);
+        let (vertex_face_start, vertex_faces) = super::shape::incidence(&face_start, &face_verts);
         return Ok(Shape {
             name: s.name,
             vertices: mesh.vertices,
             face_start,
             face_verts,
+            vertex_face_start,
+            vertex_faces,
             normals: p.normals.iter().map(v3).collect(),
             offsets: p.offsets,
             volume: p.volume,

@@ -308,7 +308,7 @@ fn barycentric(q: &[Vec3; 3], p: &Vec3) -> [f64; 3] {
 }
 
 /// Topology of the prism under a facet of `k` corners (k = 3 or 4): top face first (the cap),
-/// then the bottom and the sides. Only the face lists are used.
+/// then the bottom and the sides. Only the face lists (and the faces around each vertex) are used.
 fn prism(k: usize) -> &'static Shape {
     static PRISMS: OnceLock<[Shape; 2]> = OnceLock::new();
     let make = |k: usize| {
@@ -324,11 +324,14 @@ fn prism(k: usize) -> &'static Shape {
             face_verts.extend(f);
             face_start.push(face_verts.len() as u32);
         }
+        let (vertex_face_start, vertex_faces) = super::shape::incidence(&face_start, &face_verts);
         Shape {
             name: format!("prism{k}"),
             vertices: Vec::new(),
             face_start,
             face_verts,
+            vertex_face_start,
+            vertex_faces,
             normals: Vec::new(),
             offsets: Vec::new(),
             volume: 0.0,

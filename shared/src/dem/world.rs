@@ -20,7 +20,7 @@
 //! Energy audit: kinetic + elastic (normal and shear springs) + friction and damping
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
 
-use super::overlap::{centre_line, overlap_along, Overlap};
+use super::overlap::{overlap, overlap_along, Overlap};
 use super::shape::{Posed, Shape};
 use super::wall::Wall;
 use crate::math::Vec3;
@@ -349,18 +349,16 @@ impl World {
             }
             let key = (Partner::Body(i), j);
             let (pi, pj) = (&posed[i as usize], &posed[j as usize]);
-            // Warm start: the last normal bounds this step's overlap most tightly.
-            let axis = self
-                .contacts
-                .get(&key)
-                .map_or_else(|| centre_line(pi, pj), |c| c.normal);
-            let o = overlap_along(
+            let (si, sj) = (
                 &self.shapes[bi.shape as usize],
-                pi,
                 &self.shapes[bj.shape as usize],
-                pj,
-                &axis,
-            )?;
+            );
+            // Warm start: the last normal bounds this step's overlap most tightly; a new pair
+            // is first tested for a gap.
+            let o = match self.contacts.get(&key) {
+                Some(c) => overlap_along(si, pi, sj, pj, &c.normal),
+                None => overlap(si, pi, sj, pj),
+            }?;
             let va = bi.velocity_at(&o.centroid);
             Some(self.touch(key, &o, va, self.material.friction))
         });
