@@ -48,6 +48,13 @@ struct Cli {
     /// Safety factor on the critical time step when the scene has none
     #[arg(long, default_value_t = 0.2)]
     safety: f64,
+    /// Replace the scene's normal stiffness kn, N/m (the time step is then recomputed unless
+    /// --dt is given): e.g. to settle a bed soft and stiffen it in stages
+    #[arg(long, allow_negative_numbers = true)]
+    kn: Option<f64>,
+    /// Replace the scene's shear stiffness ks, N/m
+    #[arg(long, allow_negative_numbers = true)]
+    ks: Option<f64>,
     /// Write a time series (energy audit, contact count, wall forces) as JSON lines to FILE
     #[arg(long)]
     series: Option<std::path::PathBuf>,
@@ -128,6 +135,18 @@ fn run(args: Cli) -> anyhow::Result<()> {
     };
     if world.bodies.is_empty() {
         bail!("the scene has no bodies");
+    }
+    for (name, value, field) in [
+        ("--kn", args.kn, &mut world.material.kn),
+        ("--ks", args.ks, &mut world.material.ks),
+    ] {
+        if let Some(k) = value {
+            if !(k > 0.0 && k.is_finite()) {
+                bail!("{name} must be a positive stiffness in N/m, got {k}");
+            }
+            *field = k;
+            world.dt = 0.0; // the scene's step was for the old stiffness
+        }
     }
     if let Some(dt) = args.dt {
         if !(dt > 0.0 && dt.is_finite()) {
