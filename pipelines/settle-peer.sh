@@ -3,11 +3,12 @@
 # benchmark: the peer's settled state (or its loose lattice) is first relaxed with a soft
 # kn = 5e3 N/m, about the stiffness Yade's volumetric law has at that state's overlaps, and
 # then stiffened tenfold per stage up to the paper's kn = 1e8 N/m (ks = kn / 2), each stage run
-# with the scene's local damping until the unbalanced-force ratio is below R.
-# Usage: pipelines/settle-peer.sh N OUT.jsonl [R]   (N = 500 uses Yade's settled state)
+# with the scene's local damping until the unbalanced-force ratio is below R, for at most
+# STEPS steps (a stage only has to shrink the overlaps tenfold: a few oscillation periods).
+# Usage: pipelines/settle-peer.sh N OUT.jsonl [R [STEPS]]   (N = 500: from Yade's settled state)
 # Progress and each stage's figures go to stderr; dem must be on PATH.
 set -euo pipefail
-n=$1 out=$2 ratio=${3:-1e-3}
+n=$1 out=$2 ratio=${3:-1e-2} steps=${4:-5000}
 peers=${PEERS:-../shared/peers/yade}
 scene=$peers/scene_$n.txt
 [ -f "$scene" ] || { echo "settle-peer: no $scene (set PEERS=DIR)" >&2; exit 1; }
@@ -21,7 +22,8 @@ dem --import-peer "$scene" "${start[@]}" --kn 5e3 --ks 2.5e3 \
 for kn in 5e4 5e5 5e6 5e7 1e8; do
   ks=$(awk -v k="$kn" 'BEGIN { printf "%g", k / 2 }')
   echo "settle-peer: stage kn = $kn N/m" >&2
-  dem --kn "$kn" --ks "$ks" --until-unbalanced "$ratio" --time 1 < "$tmp/s.jsonl" > "$tmp/t.jsonl"
+  dem --kn "$kn" --ks "$ks" --until-unbalanced "$ratio" --steps "$steps" \
+    < "$tmp/s.jsonl" > "$tmp/t.jsonl"
   mv "$tmp/t.jsonl" "$tmp/s.jsonl"
 done
 mv "$tmp/s.jsonl" "$out"

@@ -495,7 +495,9 @@ pub fn simplified_hull(points: &[Vec3], budget: usize) -> Result<Hull, HullError
     let p1 = farthest(&|p| (p - cand[p0]).norm());
     let axis = (cand[p1] - cand[p0]).normalize();
     let p2 = farthest(&|p| (p - cand[p0]).cross(&axis).norm());
-    let n = (cand[p1] - cand[p0]).cross(&(cand[p2] - cand[p0])).normalize();
+    let n = (cand[p1] - cand[p0])
+        .cross(&(cand[p2] - cand[p0]))
+        .normalize();
     let p3 = farthest(&|p| n.dot(&(p - cand[p0])).abs());
     let mut chosen = vec![p0, p1, p2, p3];
     let mut taken = vec![false; cand.len()];
@@ -562,7 +564,10 @@ mod tests {
     #[test]
     fn simplified_hull_keeps_the_budget_and_stays_inside() {
         // Points on a sphere: every one is a hull vertex.
-        let pts: Vec<Vec3> = random_points(800, 5).iter().map(|p| p.normalize()).collect();
+        let pts: Vec<Vec3> = random_points(800, 5)
+            .iter()
+            .map(|p| p.normalize())
+            .collect();
         let full = convex_hull(&pts).unwrap();
         let full_volume = crate::mass::MassProps::of(&full.mesh).volume;
         let mut last = 0.0;
@@ -572,7 +577,10 @@ mod tests {
             assert!(h.mesh.vertices.len() <= budget);
             let v = crate::mass::MassProps::of(&h.mesh).volume;
             // Inside the full hull, closer to it as the budget grows.
-            assert!(v <= full_volume * (1.0 + 1e-12) && v > last, "{budget}: {v}");
+            assert!(
+                v <= full_volume * (1.0 + 1e-12) && v > last,
+                "{budget}: {v}"
+            );
             for p in &h.mesh.vertices {
                 assert!(full.planes.iter().all(|(n, d)| n.dot(p) - d <= 1e-12));
             }

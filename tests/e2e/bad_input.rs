@@ -58,10 +58,50 @@ fn abrade_rejects_each_kind_of_broken_mesh() {
 
 #[test]
 fn empty_input_is_an_error() {
-    for tool in ["abrade", "roundness", "render"] {
-        fails(tool, &[], b"", 1, &["no objects"]);
-        fails(tool, &[], b"# only a comment\n", 1, &["no objects"]);
+    for (tool, args) in [
+        ("abrade", &[][..]),
+        ("roundness", &[]),
+        ("render", &[]),
+        ("simplify", &["--vertices", "50"]),
+    ] {
+        fails(tool, args, b"", 1, &["no objects"]);
+        fails(tool, args, b"# only a comment\n", 1, &["no objects"]);
     }
+}
+
+#[test]
+fn simplify_rejects_broken_meshes_and_budgets() {
+    // An open mesh (a cube missing a face) after a good cube: named, and the cube written.
+    let open = "o open\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+                f 9 12 11 10\nf 9 10 14 13\nf 10 11 15 14\nf 11 12 16 15\nf 12 9 13 16\n";
+    let out = fails(
+        "simplify",
+        &["--vertices", "6"],
+        &after_a_good_cube(open),
+        1,
+        &["'open'"],
+    );
+    assert_eq!(
+        String::from_utf8_lossy(&out).matches("\no ").count(),
+        1,
+        "only the cube"
+    );
+    let flat = "o flat\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 4 3 2 1\n";
+    fails(
+        "simplify",
+        &["--vertices", "6"],
+        flat.as_bytes(),
+        1,
+        &["'flat'"],
+    );
+    fails(
+        "simplify",
+        &["--vertices", "3"],
+        &fixture("cube.obj"),
+        1,
+        &["at least 4"],
+    );
+    fails("simplify", &[], &fixture("cube.obj"), 2, &["--vertices"]);
 }
 
 #[test]
@@ -178,7 +218,15 @@ fn plot_rejects_bad_tables() {
 
 #[test]
 fn help_shows_an_example_pipe() {
-    for tool in ["polygen", "abrade", "roundness", "render", "plot", "dem"] {
+    for tool in [
+        "polygen",
+        "abrade",
+        "roundness",
+        "render",
+        "plot",
+        "dem",
+        "simplify",
+    ] {
         let out = ok(tool, &["--help"], b"");
         let text = String::from_utf8(out).unwrap();
         assert!(

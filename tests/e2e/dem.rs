@@ -149,6 +149,21 @@ fn bad_scenes_and_arguments() {
         &["line 11", "scale"],
     );
     fails(
+        &["--steps", "1", "--kn", "0"],
+        &scene,
+        &["--kn must be a positive"],
+    );
+    fails(
+        &["--steps", "1", "--ks", "nan"],
+        &scene,
+        &["--ks must be a positive"],
+    );
+    fails(
+        &["--steps", "1", "--damping", "1"],
+        &scene,
+        &["--damping must be in [0, 1)"],
+    );
+    fails(
         &["--import-peer", "/nonexistent/scene.txt", "--steps", "1"],
         b"",
         &["opening /nonexistent/scene.txt"],

@@ -19,6 +19,7 @@ pub fn run_env(tool: &str, args: &[&str], stdin: &[u8], env: &[(&str, &str)]) ->
         "abrade" => env!("CARGO_BIN_EXE_abrade"),
         "roundness" => env!("CARGO_BIN_EXE_roundness"),
         "render" => env!("CARGO_BIN_EXE_render"),
+        "simplify" => env!("CARGO_BIN_EXE_simplify"),
         "plot" => env!("CARGO_BIN_EXE_plot"),
         "dem" => env!("CARGO_BIN_EXE_dem"),
         other => panic!("no tool {other}"),

@@ -55,6 +55,9 @@ struct Cli {
     /// Replace the scene's shear stiffness ks, N/m
     #[arg(long, allow_negative_numbers = true)]
     ks: Option<f64>,
+    /// Replace the scene's local damping coefficient (0 to 1)
+    #[arg(long, allow_negative_numbers = true)]
+    damping: Option<f64>,
     /// Write a time series (energy audit, contact count, wall forces) as JSON lines to FILE
     #[arg(long)]
     series: Option<std::path::PathBuf>,
@@ -147,6 +150,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
             *field = k;
             world.dt = 0.0; // the scene's step was for the old stiffness
         }
+    }
+    if let Some(a) = args.damping {
+        if !(0.0..1.0).contains(&a) {
+            bail!("--damping must be in [0, 1), got {a}");
+        }
+        world.material.damping = a;
     }
     if let Some(dt) = args.dt {
         if !(dt > 0.0 && dt.is_finite()) {
