@@ -3,5 +3,7 @@
 bench: build
 	cargo bench --locked -p granular-shared --bench geometry -- --noplot 2>&1 \
 	  | awk '/^geometry\// {name=$$0} /thrpt:/ && name {print name " " $$0; name=""}'
+	cargo bench --locked -p granular-shared --bench contacts -- --noplot 2>&1 \
+	  | awk '/^contacts\// {name=$$0} /thrpt:/ && name {print name " " $$0; name=""}'
 	pipelines/bench.sh
 	pipelines/bench-dem.sh
