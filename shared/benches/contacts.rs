@@ -27,7 +27,10 @@ fn templates() -> Vec<PolyMesh> {
 }
 
 fn shapes(meshes: &[PolyMesh]) -> Vec<Shape> {
-    meshes.iter().map(|m| Shape::from_mesh(m).unwrap()).collect()
+    meshes
+        .iter()
+        .map(|m| Shape::from_mesh(m).unwrap())
+        .collect()
 }
 
 /// Touching poses: B rotated at random and moved along a random direction until it just

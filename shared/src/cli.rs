@@ -116,6 +116,46 @@ pub enum Emit<T> {
     Done(T),
 }
 
+/// The OBJ output of a tool that turns each object of a stream into meshes: comments between
+/// objects pass through, and the tool's provenance comment goes before its first object.
+pub struct ObjOut<W: io::Write> {
+    out: crate::obj::ObjWriter<W>,
+    provenance: Option<String>,
+}
+
+impl<W: io::Write> ObjOut<W> {
+    pub fn new(tool: &str, out: W) -> Self {
+        ObjOut {
+            out: crate::obj::ObjWriter::new(out),
+            provenance: Some(provenance(tool)),
+        }
+    }
+
+    /// Writes one item handed over by [`for_each_object`]: meshes made of one input object,
+    /// with that object's comments.
+    pub fn emit(
+        &mut self,
+        item: Emit<(Vec<crate::mesh::PolyMesh>, Vec<String>)>,
+    ) -> io::Result<()> {
+        match item {
+            Emit::Comment(c) => self.out.comment(&c),
+            Emit::Done((meshes, comments)) => {
+                if let Some(p) = self.provenance.take() {
+                    self.out.comment(&p)?;
+                }
+                meshes
+                    .iter()
+                    .try_for_each(|m| self.out.object(m, &comments))
+            }
+        }
+    }
+
+    /// Flushes the output.
+    pub fn finish(self) -> io::Result<()> {
+        self.out.into_inner()?.flush()
+    }
+}
+
 /// Reads an OBJ stream and runs `work` on each object, `batch` objects at a time in parallel,
 /// handing comments and results to `emit` in input order. Stops at the first error in input
 /// order, after emitting everything before it (so no object is half-written). Returns the number

@@ -2,11 +2,9 @@
 
 use anyhow::{bail, Context};
 use clap::Parser;
-use shared::cli::{self, Emit};
+use shared::cli;
 use shared::mesh::PolyMesh;
-use shared::obj::ObjWriter;
 use shared::subdiv;
-use std::io::Write;
 use std::process::ExitCode;
 
 const EXAMPLES: &str = "\
@@ -40,9 +38,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         bail!("--levels {l1} is too many: each level multiplies the faces by about 4 (at most 6)");
     }
     let named = l0 != l1;
-    let mut out = ObjWriter::new(cli::stdout());
-    let mut wrote_provenance = false;
-    let provenance = cli::provenance("abrade");
+    let mut out = cli::ObjOut::new("abrade", cli::stdout());
     let n = cli::for_each_object(
         "abrade",
         cli::stdin(),
@@ -76,24 +72,10 @@ fn run(args: Cli) -> anyhow::Result<()> {
             }
             Ok((levels, obj.comments))
         },
-        |e| {
-            match e {
-                Emit::Comment(c) => out.comment(&c)?,
-                Emit::Done((levels, comments)) => {
-                    if !wrote_provenance {
-                        out.comment(&provenance)?;
-                        wrote_provenance = true;
-                    }
-                    for m in &levels {
-                        out.object(m, &comments)?;
-                    }
-                }
-            }
-            Ok(())
-        },
+        |e| Ok(out.emit(e)?),
     )?;
     cli::require_objects(n)?;
-    out.into_inner()?.flush()?;
+    out.finish()?;
     Ok(())
 }
 

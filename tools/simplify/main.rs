@@ -2,10 +2,8 @@
 
 use anyhow::{bail, Context};
 use clap::Parser;
-use shared::cli::{self, Emit};
+use shared::cli;
 use shared::hull;
-use shared::obj::ObjWriter;
-use std::io::Write;
 use std::process::ExitCode;
 
 const EXAMPLES: &str = "\
@@ -43,9 +41,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
             args.vertices
         );
     }
-    let mut out = ObjWriter::new(cli::stdout());
-    let mut wrote_provenance = false;
-    let provenance = cli::provenance("simplify");
+    let mut out = cli::ObjOut::new("simplify", cli::stdout());
     let n = cli::for_each_object(
         "simplify",
         cli::stdin(),
@@ -60,24 +56,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
             m.name = obj.mesh.name.clone();
             m.attrs = obj.mesh.attrs.clone();
             m.attrs.set("hull_vertices", m.vertices.len());
-            Ok((m, obj.comments))
+            Ok((vec![m], obj.comments))
         },
-        |e| {
-            match e {
-                Emit::Comment(c) => out.comment(&c)?,
-                Emit::Done((m, comments)) => {
-                    if !wrote_provenance {
-                        out.comment(&provenance)?;
-                        wrote_provenance = true;
-                    }
-                    out.object(&m, &comments)?;
-                }
-            }
-            Ok(())
-        },
+        |e| Ok(out.emit(e)?),
     )?;
     cli::require_objects(n)?;
-    out.into_inner()?.flush()?;
+    out.finish()?;
     Ok(())
 }
 
