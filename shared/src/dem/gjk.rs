@@ -25,6 +25,31 @@ fn support(points: &[Vec3], d: &Vec3) -> Vec3 {
     best
 }
 
+/// Up to four points of `A - B`, kept without allocating.
+#[derive(Clone, Copy, Default)]
+struct Simplex {
+    points: [Vec3; 4],
+    len: usize,
+}
+
+impl Simplex {
+    fn of(points: &[Vec3]) -> Simplex {
+        let mut s = Simplex::default();
+        s.points[..points.len()].copy_from_slice(points);
+        s.len = points.len();
+        s
+    }
+
+    fn points(&self) -> &[Vec3] {
+        &self.points[..self.len]
+    }
+
+    fn push(&mut self, p: Vec3) {
+        self.points[self.len] = p;
+        self.len += 1;
+    }
+}
+
 /// Most iterations before giving up (a polytope pair needs a handful).
 const MAX_ITERATIONS: usize = 32;
 
@@ -41,7 +66,7 @@ pub fn separated(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> bool {
     } else {
         Vec3::x()
     };
-    let mut simplex: Vec<Vec3> = Vec::with_capacity(4);
+    let mut simplex = Simplex::default();
     for _ in 0..MAX_ITERATIONS {
         let len = d.norm();
         if len == 0.0 || !len.is_finite() {
@@ -55,7 +80,7 @@ pub fn separated(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> bool {
         }
         // With d = -v, v the nearest point found so far, the gap is between -reach and |v|:
         // once they meet it is known to be below the margin.
-        if !simplex.is_empty() && len + reach <= 1e-9 * len {
+        if simplex.len > 0 && len + reach <= 1e-9 * len {
             return false;
         }
         simplex.push(w);
@@ -70,9 +95,13 @@ pub fn separated(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> bool {
 /// Reduces `simplex` (1 to 4 points of `A - B`) to the smallest face nearest the origin and
 /// returns the point of that face nearest the origin; `None` when the origin lies on it
 /// (within round-off) or inside the tetrahedron.
-fn nearest(simplex: &mut Vec<Vec3>) -> Option<Vec3> {
-    let (point, keep) = closest_on(simplex);
-    let scale = simplex.iter().map(|p| p.norm()).fold(0.0, f64::max);
+fn nearest(simplex: &mut Simplex) -> Option<Vec3> {
+    let (point, keep) = closest_on(simplex.points());
+    let scale = simplex
+        .points()
+        .iter()
+        .map(|p| p.norm())
+        .fold(0.0, f64::max);
     *simplex = keep;
     if point.norm() <= 1e-14 * scale {
         None
@@ -83,58 +112,58 @@ fn nearest(simplex: &mut Vec<Vec3>) -> Option<Vec3> {
 
 /// The point of the convex hull of `s` nearest the origin and the vertices of the smallest
 /// face holding it (for a tetrahedron holding the origin: the origin and all four).
-fn closest_on(s: &[Vec3]) -> (Vec3, Vec<Vec3>) {
+fn closest_on(s: &[Vec3]) -> (Vec3, Simplex) {
     match s.len() {
-        1 => (s[0], s.to_vec()),
+        1 => (s[0], Simplex::of(s)),
         2 => closest_on_segment(s[0], s[1]),
         3 => closest_on_triangle(s[0], s[1], s[2]),
         _ => closest_on_tetrahedron(s[0], s[1], s[2], s[3]),
     }
 }
 
-fn closest_on_segment(a: Vec3, b: Vec3) -> (Vec3, Vec<Vec3>) {
+fn closest_on_segment(a: Vec3, b: Vec3) -> (Vec3, Simplex) {
     let ab = b - a;
     let denom = ab.norm_squared();
     if denom == 0.0 {
-        return (a, vec![a]);
+        return (a, Simplex::of(&[a]));
     }
     let t = -a.dot(&ab) / denom;
     if t <= 0.0 {
-        (a, vec![a])
+        (a, Simplex::of(&[a]))
     } else if t >= 1.0 {
-        (b, vec![b])
+        (b, Simplex::of(&[b]))
     } else {
-        (a + ab * t, vec![a, b])
+        (a + ab * t, Simplex::of(&[a, b]))
     }
 }
 
 /// Nearest point of triangle abc to the origin (Ericson, Real-Time Collision Detection 5.1.5).
-fn closest_on_triangle(a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Vec<Vec3>) {
+fn closest_on_triangle(a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Simplex) {
     let (ab, ac) = (b - a, c - a);
     let (d1, d2) = (ab.dot(&-a), ac.dot(&-a));
     if d1 <= 0.0 && d2 <= 0.0 {
-        return (a, vec![a]);
+        return (a, Simplex::of(&[a]));
     }
     let (d3, d4) = (ab.dot(&-b), ac.dot(&-b));
     if d3 >= 0.0 && d4 <= d3 {
-        return (b, vec![b]);
+        return (b, Simplex::of(&[b]));
     }
     let vc = d1 * d4 - d3 * d2;
     if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return (a + ab * (d1 / (d1 - d3)), vec![a, b]);
+        return (a + ab * (d1 / (d1 - d3)), Simplex::of(&[a, b]));
     }
     let (d5, d6) = (ab.dot(&-c), ac.dot(&-c));
     if d6 >= 0.0 && d5 <= d6 {
-        return (c, vec![c]);
+        return (c, Simplex::of(&[c]));
     }
     let vb = d5 * d2 - d1 * d6;
     if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return (a + ac * (d2 / (d2 - d6)), vec![a, c]);
+        return (a + ac * (d2 / (d2 - d6)), Simplex::of(&[a, c]));
     }
     let va = d3 * d6 - d5 * d4;
     if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
         let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return (b + (c - b) * w, vec![b, c]);
+        return (b + (c - b) * w, Simplex::of(&[b, c]));
     }
     let sum = va + vb + vc;
     if sum == 0.0 || !sum.is_finite() {
@@ -149,12 +178,12 @@ fn closest_on_triangle(a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Vec<Vec3>) {
         .expect("three edges");
     }
     let (v, w) = (vb / sum, vc / sum);
-    (a + ab * v + ac * w, vec![a, b, c])
+    (a + ab * v + ac * w, Simplex::of(&[a, b, c]))
 }
 
 /// Nearest point of tetrahedron abcd to the origin: the origin itself when inside, else the
 /// nearest of its faces that the origin lies outside of.
-fn closest_on_tetrahedron(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> (Vec3, Vec<Vec3>) {
+fn closest_on_tetrahedron(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> (Vec3, Simplex) {
     // The origin is outside face (p, q, r) when it lies on the other side from the fourth
     // vertex s.
     let outside = |p: Vec3, q: Vec3, r: Vec3, s: Vec3| {
@@ -163,7 +192,7 @@ fn closest_on_tetrahedron(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> (Vec3, Vec<Vec3
         sign_o * sign_s < 0.0
     };
     let faces = [(a, b, c, d), (a, c, d, b), (a, d, b, c), (b, d, c, a)];
-    let mut best: Option<(Vec3, Vec<Vec3>)> = None;
+    let mut best: Option<(Vec3, Simplex)> = None;
     for (p, q, r, s) in faces {
         if outside(p, q, r, s) {
             let cand = closest_on_triangle(p, q, r);
@@ -175,7 +204,7 @@ fn closest_on_tetrahedron(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> (Vec3, Vec<Vec3
             }
         }
     }
-    best.unwrap_or((Vec3::zeros(), vec![a, b, c, d]))
+    best.unwrap_or((Vec3::zeros(), Simplex::of(&[a, b, c, d])))
 }
 
 #[cfg(test)]

@@ -78,15 +78,24 @@ impl Acc {
     }
 }
 
-/// Reusable buffers of the clipping, one set per thread.
+/// Buffers of the polygon clipping.
 #[derive(Default)]
-struct Scratch {
+struct Clip {
     poly: Vec<Vec3>,
     tmp: Vec<Vec3>,
     dist: Vec<f64>,
     /// Per vertex of the body being clipped, which planes it lies outside of (bits 0..8: the
     /// bounds, then the first [`CODED`] cutting planes), or [`UNCODED`] until needed.
     codes: Vec<u64>,
+}
+
+/// Reusable buffers of the overlap, one set per thread.
+#[derive(Default)]
+struct Scratch {
+    clip: Clip,
+    /// Heights of A's and B's vertices along the slab's axis.
+    heights_a: Vec<f64>,
+    heights_b: Vec<f64>,
     /// Faces of A and B that meet the slab, and those of them whose planes cut the box.
     faces_a: Vec<u32>,
     faces_b: Vec<u32>,
@@ -175,9 +184,14 @@ fn clip_faces(
     x_is_b: bool,
     acc: &mut Acc,
     size: f64,
-    buffers: (&mut Vec<Vec3>, &mut Vec<Vec3>, &mut Vec<f64>, &mut Vec<u64>),
+    buffers: &mut Clip,
 ) {
-    let (poly, tmp, dist, codes) = buffers;
+    let Clip {
+        poly,
+        tmp,
+        dist,
+        codes,
+    } = buffers;
     // Which planes each vertex lies outside of, computed when a face first needs the vertex:
     // a face outside one plane with all its vertices is culled, and a plane that none of its
     // vertices lies outside of cannot clip it.
@@ -264,12 +278,11 @@ fn clip_faces(
     }
 }
 
-/// The faces of `s` (posed as `p`) around the vertices whose height along `n` passes `keep`,
-/// ascending, into `out`.
-fn faces_around(s: &Shape, p: &Posed, n: &Vec3, keep: impl Fn(f64) -> bool, out: &mut Vec<u32>) {
+/// The faces of `s` around the vertices whose `heights` pass `keep`, ascending, into `out`.
+fn faces_around(s: &Shape, heights: &[f64], keep: impl Fn(f64) -> bool, out: &mut Vec<u32>) {
     out.clear();
-    for (i, v) in p.vertices.iter().enumerate() {
-        if keep(n.dot(v)) {
+    for (i, &h) in heights.iter().enumerate() {
+        if keep(h) {
             out.extend_from_slice(s.faces_at(i));
         }
     }
@@ -336,41 +349,43 @@ pub(crate) fn overlap_parts(
     } else {
         Vec3::z()
     };
-    let (hi_n, lo_n) = reach(a, b, &n);
-    if lo_n >= hi_n {
-        return None; // `n` separates the bodies
-    }
     let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
-    // Reference point for the divergence sums: the box centre moved onto the slab's middle
-    // plane, near every piece of a thin overlap (a distant one makes the sums cancel).
-    let centre = (lo + hi) * 0.5;
-    let mut acc = Acc {
-        reference: centre + n * ((lo_n + hi_n) * 0.5 - n.dot(&centre)),
-        ..Default::default()
-    };
-    // The box only culls; padded by the coplanar band so that a face of A that the band
-    // keeps (B's same-plane face being skipped) is not cut away by the box instead.
-    let pad = COPLANAR_REL * size;
-    let (lo, hi) = (lo - Vec3::repeat(pad), hi + Vec3::repeat(pad));
-    let bounds = bound_planes(&n, lo_n - pad, hi_n + pad, &lo, &hi);
+    let mut acc = Acc::default();
     SCRATCH.with_borrow_mut(|sc| {
         let Scratch {
-            poly,
-            tmp,
-            dist,
-            codes,
+            clip,
+            heights_a,
+            heights_b,
             faces_a,
             faces_b,
             planes_a,
             planes_b,
         } = sc;
+        heights_a.clear();
+        heights_a.extend(a.vertices.iter().map(|v| n.dot(v)));
+        heights_b.clear();
+        heights_b.extend(b.vertices.iter().map(|v| n.dot(v)));
+        let hi_n = heights_a.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let lo_n = heights_b.iter().copied().fold(f64::INFINITY, f64::min);
+        if lo_n >= hi_n {
+            return None; // `n` separates the bodies
+        }
+        // Reference point for the divergence sums: the box centre moved onto the slab's middle
+        // plane, near every piece of a thin overlap (a distant one makes the sums cancel).
+        let centre = (lo + hi) * 0.5;
+        acc.reference = centre + n * ((lo_n + hi_n) * 0.5 - n.dot(&centre));
+        // The box only culls; padded by the coplanar band so that a face of A that the band
+        // keeps (B's same-plane face being skipped) is not cut away by the box instead.
+        let pad = COPLANAR_REL * size;
+        let (lo, hi) = (lo - Vec3::repeat(pad), hi + Vec3::repeat(pad));
+        let (lo_n, hi_n) = (lo_n - pad, hi_n + pad);
+        let bounds = bound_planes(&n, lo_n, hi_n, &lo, &hi);
         // Only faces that meet the slab can bound the overlap: a face of A reaches into it
         // exactly when one of its vertices does. Within the slab, B is the intersection of
         // the half-spaces of its faces that meet the slab (the others hold B ∩ slab), and
         // of those only the planes that cut the box matter.
-        let (lo_n, hi_n) = (lo_n - pad, hi_n + pad);
-        faces_around(sa, a, &n, |h| h >= lo_n, faces_a);
-        faces_around(sb, b, &n, |h| h <= hi_n, faces_b);
+        faces_around(sa, heights_a, |h| h >= lo_n, faces_a);
+        faces_around(sb, heights_b, |h| h <= hi_n, faces_b);
         let cuts = |p: &Posed, faces: &[u32], out: &mut Vec<u32>| {
             out.clear();
             out.extend(faces.iter().copied().filter(|&j| {
@@ -379,13 +394,24 @@ pub(crate) fn overlap_parts(
         };
         cuts(a, faces_a, planes_a);
         cuts(b, faces_b, planes_b);
-        let buffers = (poly, tmp, dist, codes);
-        #[rustfmt::skip]
-        clip_faces(sa, a, faces_a, b, planes_b, &[], &bounds, false, &mut acc, size,
-            (buffers.0, buffers.1, buffers.2, buffers.3));
-        #[rustfmt::skip]
-        clip_faces(sb, b, faces_b, a, planes_a, faces_a, &bounds, true, &mut acc, size, buffers);
-    });
+        clip_faces(
+            sa,
+            a,
+            faces_a,
+            b,
+            planes_b,
+            &[],
+            &bounds,
+            false,
+            &mut acc,
+            size,
+            clip,
+        );
+        clip_faces(
+            sb, b, faces_b, a, planes_a, faces_a, &bounds, true, &mut acc, size, clip,
+        );
+        Some(())
+    })?;
     let volume = acc.volume6 / 6.0;
     if volume.is_nan() || volume <= 0.0 {
         return None;
@@ -446,13 +472,12 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
         ..Default::default()
     };
     SCRATCH.with_borrow_mut(|sc| {
-        let Scratch {
+        let Clip {
             poly,
             tmp,
             dist,
             codes,
-            ..
-        } = sc;
+        } = &mut sc.clip;
         codes.clear();
         codes.extend(b.vertices.iter().map(|v| u64::from(n.dot(v) > d)));
         for f in 0..sb.face_count() {

@@ -481,42 +481,15 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 world.gravity = v3(&gravity);
             }
             Record::Shape(s) => {
-                if s.id as usize != world.shapes.len() {
-                    return Err(at(
-                        n,
-                        format!(
-                            "shape id {} out of order (expected {})",
-                            s.id,
-                            world.shapes.len()
-                        ),
-                    ));
-                }
+                in_order(n, "shape", s.id, world.shapes.len())?;
                 world.shapes.push(shape_from_record(n, s)?);
             }
             Record::Body(b) => {
-                if b.id as usize != pending_bodies.len() {
-                    return Err(at(
-                        n,
-                        format!(
-                            "body id {} out of order (expected {})",
-                            b.id,
-                            pending_bodies.len()
-                        ),
-                    ));
-                }
+                in_order(n, "body", b.id, pending_bodies.len())?;
                 pending_bodies.push((n, b));
             }
             Record::Wall(w) => {
-                if w.id as usize != world.walls.len() {
-                    return Err(at(
-                        n,
-                        format!(
-                            "wall id {} out of order (expected {})",
-                            w.id,
-                            world.walls.len()
-                        ),
-                    ));
-                }
+                in_order(n, "wall", w.id, world.walls.len())?;
                 world.walls.push(w.to_wall().map_err(|e| at(n, e))?);
             }
             Record::Contact(c) => contacts.push((n, c)),
@@ -642,6 +615,18 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
         .sum();
     check_fixed_overlaps(&world)?;
     Ok(world)
+}
+
+/// Records of one kind come with ids 0, 1, 2, ... in order.
+fn in_order(n: usize, what: &str, id: u32, expected: usize) -> Result<(), StateError> {
+    if id as usize == expected {
+        Ok(())
+    } else {
+        Err(at(
+            n,
+            format!("{what} id {id} out of order (expected {expected})"),
+        ))
+    }
 }
 
 fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
