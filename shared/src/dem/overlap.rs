@@ -44,9 +44,18 @@ impl Overlap {
 }
 
 /// Accumulates the boundary pieces of the overlap polyhedron.
+///
+/// The divergence sums are taken about a reference point on the overlap itself: the first
+/// vertex of the first piece. Each term is then of the overlap's own size, so a grazing overlap
+/// a few picometres across keeps its relative accuracy; about a point a body's size away, the
+/// terms are ~1e10 times larger and their round-off (and the ~1e-17 m seams between pieces
+/// clipped along different paths) swamped its volume, which gave depths of metres.
 #[derive(Default)]
 struct Acc {
-    reference: Vec3,
+    /// Set by the first piece.
+    reference: Option<Vec3>,
+    /// A plane the reference must lie on (a wall's, whose cap is not added as a piece).
+    plane: Option<(Vec3, f64)>,
     volume6: f64,
     moment24: Vec3,
     area_b: Vec3,
@@ -61,20 +70,36 @@ impl Acc {
         if poly.len() < 3 {
             return Vec3::zeros();
         }
-        let o = self.reference;
+        let plane = self.plane;
+        let o = *self.reference.get_or_insert_with(|| match plane {
+            Some((n, d)) => poly[0] - n * (n.dot(&poly[0]) - d),
+            None => poly[0],
+        });
         let a = poly[0] - o;
         let mut area = Vec3::zeros();
         for k in 1..poly.len() - 1 {
             let (b, c) = (poly[k] - o, poly[k + 1] - o);
-            let v6 = a.dot(&b.cross(&c));
+            // a . (b x c), from the triangle's own edges: round-off of the piece's size.
+            let tri = (b - a).cross(&(c - a));
+            let v6 = a.dot(&tri);
             self.volume6 += v6;
             self.moment24 += v6 * (a + b + c);
-            area += (b - a).cross(&(c - a));
+            area += tri;
         }
         if on_b {
             self.area_b += area * 0.5;
         }
         area * 0.5
+    }
+
+    /// The volume and centroid summed so far; `None` for no volume.
+    fn volume_centroid(&self) -> Option<(f64, Vec3)> {
+        let volume = self.volume6 / 6.0;
+        let o = self.reference?;
+        if volume.is_nan() || volume <= 0.0 {
+            return None;
+        }
+        Some((volume, o + self.moment24 / (4.0 * self.volume6)))
     }
 }
 
@@ -370,10 +395,6 @@ pub(crate) fn overlap_parts(
         if lo_n >= hi_n {
             return None; // `n` separates the bodies
         }
-        // Reference point for the divergence sums: the box centre moved onto the slab's middle
-        // plane, near every piece of a thin overlap (a distant one makes the sums cancel).
-        let centre = (lo + hi) * 0.5;
-        acc.reference = centre + n * ((lo_n + hi_n) * 0.5 - n.dot(&centre));
         // The box only culls; padded by the coplanar band so that a face of A that the band
         // keeps (B's same-plane face being skipped) is not cut away by the box instead.
         let pad = COPLANAR_REL * size;
@@ -412,12 +433,7 @@ pub(crate) fn overlap_parts(
         );
         Some(())
     })?;
-    let volume = acc.volume6 / 6.0;
-    if volume.is_nan() || volume <= 0.0 {
-        return None;
-    }
-
-    let centroid = acc.reference + acc.moment24 / (4.0 * acc.volume6);
+    let (volume, centroid) = acc.volume_centroid()?;
     Some((
         Overlap {
             volume,
@@ -468,7 +484,7 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
     }
     // Reference point on the plane: the cap (on the plane) adds no volume or moment.
     let mut acc = Acc {
-        reference: n * d,
+        plane: Some((*n, d)),
         ..Default::default()
     };
     SCRATCH.with_borrow_mut(|sc| {
@@ -492,11 +508,7 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
             }
         }
     });
-    let volume = acc.volume6 / 6.0;
-    if volume.is_nan() || volume <= 0.0 {
-        return None;
-    }
-    let centroid = acc.reference + acc.moment24 / (4.0 * acc.volume6);
+    let (volume, centroid) = acc.volume_centroid()?;
     // B's surface inside the wall closes with the cap of area A_cap and normal n: S_B = -A_cap n.
     let cap = acc.area_b.norm();
     Some(Overlap {
