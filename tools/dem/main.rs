@@ -139,17 +139,17 @@ fn run(args: Cli) -> anyhow::Result<()> {
     if world.bodies.is_empty() {
         bail!("the scene has no bodies");
     }
-    for (name, value, field) in [
-        ("--kn", args.kn, &mut world.material.kn),
-        ("--ks", args.ks, &mut world.material.ks),
-    ] {
+    for (name, value) in [("--kn", args.kn), ("--ks", args.ks)] {
         if let Some(k) = value {
             if !(k > 0.0 && k.is_finite()) {
                 bail!("{name} must be a positive stiffness in N/m, got {k}");
             }
-            *field = k;
-            world.dt = 0.0; // the scene's step was for the old stiffness
         }
+    }
+    if args.kn.is_some() || args.ks.is_some() {
+        let m = &world.material;
+        world.set_stiffness(args.kn.unwrap_or(m.kn), args.ks.unwrap_or(m.ks));
+        world.dt = 0.0; // the scene's step was for the old stiffness
     }
     if let Some(a) = args.damping {
         if !(0.0..1.0).contains(&a) {

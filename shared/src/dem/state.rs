@@ -366,6 +366,10 @@ pub struct ContactRecord {
     pub point: [f64; 3],
     pub depth: f64,
     pub normal_force: f64,
+    /// Energy stored by the normal force, J (see `Contact::potential`); when absent,
+    /// `normal_force^2 / 2kn` (exact for faces pressed flat).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub potential: Option<f64>,
     pub shear: [f64; 3],
     pub sliding: bool,
 }
@@ -599,6 +603,9 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 point: v3(&c.point),
                 depth: c.depth,
                 normal_force: c.normal_force,
+                potential: c
+                    .potential
+                    .unwrap_or(0.5 * c.normal_force.powi(2) / world.material.kn),
                 shear: v3(&c.shear),
                 sliding: c.sliding,
             },
@@ -777,6 +784,7 @@ pub fn write_world<W: Write>(world: &World, mut out: W) -> std::io::Result<()> {
             point: a3(&c.point),
             depth: c.depth,
             normal_force: c.normal_force,
+            potential: Some(c.potential),
             shear: a3(&c.shear),
             sliding: c.sliding,
         }))?;

@@ -116,12 +116,17 @@ pub struct Contact {
     pub point: Vec3,
     pub depth: f64,
     pub normal_force: f64,
+    /// Energy stored by the normal force: the work done against it since the contact began,
+    /// summed step by step with the trapezoidal rule. The depth `V / |S_B|` is not the
+    /// distance the force moves through: for faces pressed flat together this is
+    /// `Fn^2 / 2kn` exactly, for a vertex pressed into a face three times that.
+    pub potential: f64,
     pub shear: Vec3,
     pub sliding: bool,
 }
 
 impl Contact {
-    /// Energy stored in the normal and shear springs: `Fn^2 / 2kn + |Fs|^2 / 2ks` (no shear term
+    /// Energy stored in the normal and shear springs: `potential + |Fs|^2 / 2ks` (no shear term
     /// without a shear spring).
     pub fn elastic_energy(&self, m: &Material) -> f64 {
         let shear = if m.ks > 0.0 {
@@ -129,7 +134,7 @@ impl Contact {
         } else {
             0.0
         };
-        0.5 * self.normal_force.powi(2) / m.kn + shear
+        self.potential + shear
     }
 }
 
@@ -237,6 +242,28 @@ impl World {
         self.bodies.len() - 1
     }
 
+    /// Replaces the contact stiffnesses, carrying the contacts over as if they had always had
+    /// them: the same depths and shear displacements, so their forces and stored energies
+    /// scale by the ratios. The energy this adds or removes is not work done by anything in
+    /// the audit, so `balance()` moves by it. Set a new time step afterwards (`critical_dt`).
+    pub fn set_stiffness(&mut self, kn: f64, ks: f64) {
+        let (rn, rs) = (kn / self.material.kn, ks / self.material.ks);
+        for c in self.contacts.values_mut() {
+            c.normal_force *= rn;
+            c.potential *= rn;
+            if rs.is_finite() {
+                c.shear *= rs;
+            }
+        }
+        self.material.kn = kn;
+        self.material.ks = ks;
+        self.energy.elastic = self
+            .contacts
+            .values()
+            .map(|c| c.elastic_energy(&self.material))
+            .sum();
+    }
+
     /// The critical time step of the stiffest oscillator: min over free bodies of
     /// `sqrt(m / kn)` (translation) and `sqrt(I_min / (kn r^2))` (rotation, r the bounding
     /// radius). Multiply by a safety factor below 1 for `dt`.
@@ -298,8 +325,19 @@ impl World {
         let point = o.centroid;
         let rel = b.velocity_at(&point) - va;
         let vt = rel - n * n.dot(&rel);
+        let last = self.contacts.get(&key);
+        // Work against the normal force over the step (the mean of the last and this step's
+        // force over the contact point's relative displacement), stored as the contact's
+        // energy. A new contact starts as if pressed flat: exact for a scene built with
+        // overlaps of flat contacts, and a step's penetration otherwise.
+        let potential = match last {
+            Some(c) => {
+                c.potential - 0.5 * (c.normal * c.normal_force + n * fn_).dot(&rel) * self.dt
+            }
+            None => 0.5 * fn_ * depth,
+        };
         // Carry the stored shear force onto the new tangent plane, keeping its magnitude.
-        let old = self.contacts.get(&key).map_or(Vec3::zeros(), |c| c.shear);
+        let old = last.map_or(Vec3::zeros(), |c| c.shear);
         let mut shear = old - n * n.dot(&old);
         let len = shear.norm();
         if len > 0.0 {
@@ -319,6 +357,7 @@ impl World {
             point,
             depth,
             normal_force: fn_,
+            potential,
             shear,
             sliding,
         };
