@@ -4,7 +4,10 @@ use anyhow::{bail, Context};
 use clap::Parser;
 use serde::Serialize;
 use shared::cli;
-use shared::dem::{peer, state, world::World};
+use shared::dem::{
+    peer, state,
+    world::{Partner, World},
+};
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -246,11 +249,21 @@ fn run(args: Cli) -> anyhow::Result<()> {
     }
     if steps > 0 {
         let secs = start.elapsed().as_secs_f64();
+        // Contacts per particle as the peer benchmark counts them: (2 N_pp + N_pw) / N.
+        let ends: usize = world
+            .contacts
+            .keys()
+            .map(|(partner, _)| match partner {
+                Partner::Body(_) => 2,
+                Partner::Wall(_) => 1,
+            })
+            .sum();
         eprintln!(
-            "dem: {steps} steps of {} bodies in {secs:.2} s ({:.3e} particle-steps/s), {} contacts at the end",
+            "dem: {steps} steps of {} bodies in {secs:.2} s ({:.3e} particle-steps/s), {} contacts at the end ({:.2} per particle)",
             world.bodies.len(),
             steps as f64 * world.bodies.len() as f64 / secs.max(1e-9),
-            world.contacts.len()
+            world.contacts.len(),
+            ends as f64 / world.bodies.len() as f64
         );
     }
     let mut out = cli::stdout();
