@@ -242,15 +242,18 @@ impl World {
         self.bodies.len() - 1
     }
 
-    /// Replaces the contact stiffnesses, carrying the contacts over as if they had always had
-    /// them: the same depths and shear displacements, so their forces and stored energies
-    /// scale by the ratios. The energy this adds or removes is not work done by anything in
-    /// the audit, so `balance()` moves by it. Set a new time step afterwards (`critical_dt`).
+    /// Replaces the contact stiffnesses, carrying the contacts over at the same depths and
+    /// shear displacements: forces scale by the ratios, and each contact's stored energy starts
+    /// again from `Fn^2 / 2kn` (what a new contact gets). The work a contact has stored under
+    /// the old stiffness is path-dependent (the law is not conservative off flat contacts), so
+    /// scaling it would scale its drift too: from kn = 5e3 to 1e8 N/m that made a settled bed's
+    /// elastic energy -234 J. The energy a change adds or removes is not work done by anything
+    /// in the audit, so `balance()` moves by it. Set a new time step afterwards.
     pub fn set_stiffness(&mut self, kn: f64, ks: f64) {
         let (rn, rs) = (kn / self.material.kn, ks / self.material.ks);
         for c in self.contacts.values_mut() {
             c.normal_force *= rn;
-            c.potential *= rn;
+            c.potential = 0.5 * c.normal_force * c.depth;
             if rs.is_finite() {
                 c.shear *= rs;
             }
