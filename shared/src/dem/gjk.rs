@@ -56,8 +56,15 @@ const MAX_ITERATIONS: usize = 32;
 /// True when a plane with normal `d` (from A towards B) leaves all of `a` at least `margin`
 /// below all of `b`; `start` is the first direction tried (best: from A's centre to B's).
 pub fn separated(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> bool {
+    a.is_empty() || b.is_empty() || separating_axis(a, b, start, margin).is_some()
+}
+
+/// [`separated`] that also hands back the direction that proved the gap: the best start for
+/// the same pair's next test, a step later (bodies move little, so it usually proves the gap
+/// again with one support evaluation). `None` when no gap above `margin` was proven.
+pub fn separating_axis(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> Option<Vec3> {
     if a.is_empty() || b.is_empty() {
-        return true;
+        return None;
     }
     // The farthest point of A - B along d: max_A d.x - min_B d.x at once.
     let diff = |d: &Vec3| support(a, d) - support(b, &-d);
@@ -70,26 +77,26 @@ pub fn separated(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> bool {
     for _ in 0..MAX_ITERATIONS {
         let len = d.norm();
         if len == 0.0 || !len.is_finite() {
-            return false;
+            return None;
         }
         let w = diff(&d);
         // Every point of A - B lies at most `reach` along d: A is below B by at least -reach.
         let reach = d.dot(&w) / len;
         if reach < -margin {
-            return true;
+            return Some(d);
         }
         // With d = -v, v the nearest point found so far, the gap is between -reach and |v|:
         // once they meet it is known to be below the margin.
         if simplex.len > 0 && len + reach <= 1e-9 * len {
-            return false;
+            return None;
         }
         simplex.push(w);
         match nearest(&mut simplex) {
             Some(v) => d = -v,
-            None => return false, // the origin is inside (or on) the simplex
+            None => return None, // the origin is inside (or on) the simplex
         }
     }
-    false
+    None
 }
 
 /// Reduces `simplex` (1 to 4 points of `A - B`) to the smallest face nearest the origin and

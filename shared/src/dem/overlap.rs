@@ -333,8 +333,14 @@ const APART_REL: f64 = 1e-9;
 /// from `start`: then the exact overlap (whose round-off is ~1e-16 x size) is empty too, so
 /// taking this shortcut or not gives the same result.
 pub fn apart(a: &Posed, b: &Posed, start: &Vec3) -> bool {
+    gap_axis(a, b, start).is_some()
+}
+
+/// [`apart`], handing back the direction that proves the gap (the best start for the same
+/// pair's test a step later), or `None`.
+pub fn gap_axis(a: &Posed, b: &Posed, start: &Vec3) -> Option<Vec3> {
     let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
-    super::gjk::separated(&a.vertices, &b.vertices, start, APART_REL * size)
+    super::gjk::separating_axis(&a.vertices, &b.vertices, start, APART_REL * size)
 }
 
 /// From the centre of A's bounding box to B's: the culling axis when no better one is known.

@@ -20,7 +20,7 @@
 //! Energy audit: kinetic + elastic (normal and shear springs) + friction and damping
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
 
-use super::overlap::{overlap, overlap_along, Overlap};
+use super::overlap::{centre_line, gap_axis, overlap_along, Overlap};
 use super::shape::{Posed, Shape};
 use super::wall::Wall;
 use crate::math::Vec3;
@@ -179,6 +179,17 @@ pub struct World {
     /// (gravity and contacts, before damping) over the mean contact force; infinite with no
     /// contacts. Derived, not part of the state.
     pub unbalanced: f64,
+    /// For body pairs whose boxes overlapped last step while the bodies did not: the direction
+    /// that proved the gap, where this step's proof starts. Only speed depends on it (the proof
+    /// is exact beyond round-off, see `overlap::apart`), so it is not part of the state.
+    separations: BTreeMap<(u32, u32), Vec3>,
+}
+
+/// What the narrow phase finds for one candidate pair.
+enum Outcome {
+    Touch(Touch),
+    /// Bodies `i < j` apart, as proven along this direction.
+    Apart(u32, u32, Vec3),
 }
 
 /// What the narrow phase hands back for one touching pair.
@@ -208,6 +219,7 @@ impl World {
             contacts: BTreeMap::new(),
             energy: Energy::default(),
             unbalanced: f64::INFINITY,
+            separations: BTreeMap::new(),
         }
     }
 
@@ -384,7 +396,7 @@ impl World {
         let posed = self.posed();
         let pairs = Self::candidate_pairs(&posed);
         let par = self.bodies.len() >= PARALLEL_MIN_BODIES;
-        let mut touches: Vec<Touch> = filter_map_maybe_par(&pairs, par, |&(i, j)| {
+        let outcomes: Vec<Outcome> = filter_map_maybe_par(&pairs, par, |&(i, j)| {
             let (bi, bj) = (&self.bodies[i as usize], &self.bodies[j as usize]);
             if bi.fixed && bj.fixed {
                 return None;
@@ -396,14 +408,37 @@ impl World {
                 &self.shapes[bj.shape as usize],
             );
             // Warm start: the last normal bounds this step's overlap most tightly; a new pair
-            // is first tested for a gap.
+            // is first tested for a gap, from the direction that proved it last step.
             let o = match self.contacts.get(&key) {
                 Some(c) => overlap_along(si, pi, sj, pj, &c.normal),
-                None => overlap(si, pi, sj, pj),
+                None => {
+                    let line = centre_line(pi, pj);
+                    let start = self.separations.get(&(i, j)).unwrap_or(&line);
+                    if let Some(axis) = gap_axis(pi, pj, start) {
+                        return Some(Outcome::Apart(i, j, axis));
+                    }
+                    overlap_along(si, pi, sj, pj, &line)
+                }
             }?;
             let va = bi.velocity_at(&o.centroid);
-            Some(self.touch(key, &o, va, self.material.friction))
+            Some(Outcome::Touch(self.touch(
+                key,
+                &o,
+                va,
+                self.material.friction,
+            )))
         });
+        let mut touches = Vec::with_capacity(outcomes.len());
+        let mut separations = BTreeMap::new();
+        for outcome in outcomes {
+            match outcome {
+                Outcome::Touch(t) => touches.push(t),
+                Outcome::Apart(i, j, axis) => {
+                    separations.insert((i, j), axis);
+                }
+            }
+        }
+        self.separations = separations;
         let this = &*self;
         let wall_pairs: Vec<(u32, u32)> = (0..this.bodies.len() as u32)
             .flat_map(|i| (0..this.walls.len() as u32).map(move |w| (i, w)))
