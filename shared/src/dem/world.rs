@@ -138,6 +138,12 @@ impl Contact {
     }
 }
 
+/// The energy a contact stores when its force has grown linearly over its depth (faces pressed
+/// flat, `Fn^2 / 2kn`): where a contact's stored work starts, new or re-stiffened.
+fn flat_potential(normal_force: f64, depth: f64) -> f64 {
+    0.5 * normal_force * depth
+}
+
 /// Key of a contact: (partner, body), the body being B (the normal points to it). For body pairs
 /// the partner has the lower index.
 pub type ContactKey = (Partner, u32);
@@ -265,7 +271,7 @@ impl World {
         let (rn, rs) = (kn / self.material.kn, ks / self.material.ks);
         for c in self.contacts.values_mut() {
             c.normal_force *= rn;
-            c.potential = 0.5 * c.normal_force * c.depth;
+            c.potential = flat_potential(c.normal_force, c.depth);
             if rs.is_finite() {
                 c.shear *= rs;
             }
@@ -349,7 +355,7 @@ impl World {
             Some(c) => {
                 c.potential - 0.5 * (c.normal * c.normal_force + n * fn_).dot(&rel) * self.dt
             }
-            None => 0.5 * fn_ * depth,
+            None => flat_potential(fn_, depth),
         };
         // Carry the stored shear force onto the new tangent plane, keeping its magnitude.
         let old = last.map_or(Vec3::zeros(), |c| c.shear);
