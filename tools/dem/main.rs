@@ -80,6 +80,11 @@ struct Cli {
     /// With --import-peer: a settled state (id x y z qw qx qy qz) to start from
     #[arg(long, requires = "import_peer")]
     peer_state: Option<std::path::PathBuf>,
+    /// With --import-peer: abrade every particle LEVELS times (Catmull-Clark, then the convex
+    /// hull: the paper's Ab_LEVELS of the peer's shapes), in place
+    #[arg(long, value_name = "LEVELS", default_value_t = 0, requires = "import_peer",
+          value_parser = clap::value_parser!(u32).range(0..=4))]
+    peer_abrade: u32,
 }
 
 #[derive(Serialize)]
@@ -134,7 +139,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 ))
             };
             let settled = args.peer_state.as_deref().map(open).transpose()?;
-            peer::read_peer_scene(open(path)?, settled)
+            peer::read_peer_scene(open(path)?, settled, args.peer_abrade)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
         }
         None => state::read_world(cli::stdin())?,
@@ -265,11 +270,36 @@ fn run(args: Cli) -> anyhow::Result<()> {
             world.contacts.len(),
             ends as f64 / world.bodies.len() as f64
         );
+        let t = world.times;
+        let share = |x: f64| 100.0 * x / t.total().max(1e-300);
+        eprintln!(
+            "dem: step time {:.2} s: broad phase {:.1} %, narrow phase {:.1} %, walls {:.1} %, force assembly {:.1} %, integration {:.1} %",
+            t.total(),
+            share(t.broad),
+            share(t.narrow),
+            share(t.walls),
+            share(t.assembly),
+            share(t.integration)
+        );
+        if let Some(kib) = peak_resident_kib() {
+            eprintln!(
+                "dem: peak resident memory {:.1} MiB ({:.1} KiB per particle, all included)",
+                kib as f64 / 1024.0,
+                kib as f64 / world.bodies.len() as f64
+            );
+        }
     }
     let mut out = cli::stdout();
     state::write_world(&world, &mut out)?;
     out.flush()?;
     Ok(())
+}
+
+/// The process's peak resident set (Linux `VmHWM`), KiB; `None` where it cannot be read.
+fn peak_resident_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 #[cfg(test)]

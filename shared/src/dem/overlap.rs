@@ -484,8 +484,8 @@ fn swallowed(a: &Posed, b: &Posed, volume: f64) -> Vec3 {
 /// outward normal is `n`): volume, centroid, and B's area vector inside the wall; the normal from
 /// the wall to B is `n` itself.
 pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Overlap> {
-    // Quick reject: every vertex above the plane.
-    if b.vertices.iter().all(|v| n.dot(v) >= d) {
+    // Quick reject: the box above the plane, then every vertex above it.
+    if box_excess(&-n, -d, &b.lo, &b.hi) <= 0.0 || b.vertices.iter().all(|v| n.dot(v) >= d) {
         return None;
     }
     // Reference point on the plane: the cap (on the plane) adds no volume or moment.

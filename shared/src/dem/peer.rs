@@ -13,6 +13,7 @@ use super::wall::Wall;
 use super::world::{Material, World};
 use crate::hull;
 use crate::math::Vec3;
+use crate::subdiv::subdivide;
 use nalgebra::{Quaternion, UnitQuaternion};
 use std::io::BufRead;
 
@@ -21,9 +22,13 @@ fn err(line: usize, msg: impl Into<String>) -> String {
 }
 
 /// A world from a peer scene; `settled` optionally moves the particles to a settled state.
+/// With `abrade` > 0 each particle becomes the convex hull of its Catmull-Clark subdivision
+/// `abrade` times (the paper's Ab_k from this I_P shape), in the same place: the subdivided
+/// surface lies inside the polyhedron, so the abraded particles are smaller and touch less.
 pub fn read_peer_scene<R: BufRead, S: BufRead>(
     scene: R,
     settled: Option<S>,
+    abrade: u32,
 ) -> Result<World, String> {
     let material = Material {
         wall_friction: 0.5,
@@ -134,6 +139,15 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
     for (i, ((_, verts), (centre, q))) in particles.iter().zip(&poses).enumerate() {
         let h = hull::convex_hull(verts).map_err(|e| format!("particle {i}: {e}"))?;
         let mut mesh = h.mesh;
+        if abrade > 0 {
+            let topo = mesh
+                .topology(None)
+                .map_err(|e| format!("particle {i}: {e}"))?;
+            let smooth = subdivide(&mesh, &topo, abrade);
+            mesh = hull::convex_hull(&smooth.vertices)
+                .map_err(|e| format!("particle {i}, abraded: {e}"))?
+                .mesh;
+        }
         mesh.name = format!("peer{i}");
         let shape = Shape::from_mesh(&mesh).map_err(|e| e.to_string())?;
         // The shape's principal frame sits at centroid_in_mesh, turned by frame_in_mesh, in the
@@ -154,7 +168,7 @@ mod tests {
 
     #[test]
     fn reads_a_scene_and_keeps_world_vertices() {
-        let w = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>).unwrap();
+        let w = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>, 0).unwrap();
         assert_eq!((w.bodies.len(), w.walls.len()), (1, 5));
         let b = &w.bodies[0];
         let posed = w.shapes[0].posed(&b.pos, &b.rot, b.scale);
@@ -170,7 +184,7 @@ mod tests {
     #[test]
     fn a_settled_pose_moves_and_turns() {
         let settled = "0 0.02 0.03 0.04 0 0 0 1\n"; // half a turn about z
-        let w = read_peer_scene(SCENE.as_bytes(), Some(settled.as_bytes())).unwrap();
+        let w = read_peer_scene(SCENE.as_bytes(), Some(settled.as_bytes()), 0).unwrap();
         let b = &w.bodies[0];
         let posed = w.shapes[0].posed(&b.pos, &b.rot, b.scale);
         let v = Vec3::new(0.02 - 0.01, 0.03, 0.04); // (0.01, 0, 0) turned half a turn
@@ -180,14 +194,14 @@ mod tests {
     #[test]
     fn bad_peer_input() {
         assert!(
-            read_peer_scene("0 4 0.01 0 0 0 4 1 2 3\n".as_bytes(), None::<&[u8]>)
+            read_peer_scene("0 4 0.01 0 0 0 4 1 2 3\n".as_bytes(), None::<&[u8]>, 0)
                 .unwrap_err()
                 .contains("line 1")
         );
-        assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>)
+        assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>, 0)
             .unwrap_err()
             .contains("box needs"));
-        assert!(read_peer_scene("# nothing\n".as_bytes(), None::<&[u8]>)
+        assert!(read_peer_scene("# nothing\n".as_bytes(), None::<&[u8]>, 0)
             .unwrap_err()
             .contains("no 'box"));
     }

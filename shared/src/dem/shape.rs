@@ -105,27 +105,29 @@ impl Shape {
 
     /// The shape scaled by `scale`, rotated by `rot` and moved to `pos`, in world coordinates.
     pub fn posed(&self, pos: &Vec3, rot: &UnitQuaternion<f64>, scale: f64) -> Posed {
+        let mut out = Posed::default();
+        self.pose_into(pos, rot, scale, &mut out);
+        out
+    }
+
+    /// [`Shape::posed`] into `out`, reusing its buffers (same values).
+    pub fn pose_into(&self, pos: &Vec3, rot: &UnitQuaternion<f64>, scale: f64, out: &mut Posed) {
         let r = rot.to_rotation_matrix();
-        let vertices: Vec<Vec3> = self
-            .vertices
-            .iter()
-            .map(|v| pos + r * (v * scale))
-            .collect();
-        let normals: Vec<Vec3> = self.normals.iter().map(|n| r * n).collect();
-        let offsets = self
-            .offsets
-            .iter()
-            .zip(&normals)
-            .map(|(d, n)| d * scale + n.dot(pos))
-            .collect();
-        let (lo, hi) = crate::math::bounding_box(&vertices).expect("a shape has vertices");
-        Posed {
-            vertices,
-            normals,
-            offsets,
-            lo,
-            hi,
-        }
+        out.vertices.clear();
+        out.vertices
+            .extend(self.vertices.iter().map(|v| pos + r * (v * scale)));
+        out.normals.clear();
+        out.normals.extend(self.normals.iter().map(|n| r * n));
+        out.offsets.clear();
+        out.offsets.extend(
+            self.offsets
+                .iter()
+                .zip(&out.normals)
+                .map(|(d, n)| d * scale + n.dot(pos)),
+        );
+        let (lo, hi) = crate::math::bounding_box(&out.vertices).expect("a shape has vertices");
+        out.lo = lo;
+        out.hi = hi;
     }
 }
 
@@ -184,7 +186,7 @@ pub fn principal_axes(inertia: &Mat3) -> (Mat3, Vec3) {
 }
 
 /// A shape placed in the world: vertices, face planes and bounding box in world coordinates.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Posed {
     pub vertices: Vec<Vec3>,
     pub normals: Vec<Vec3>,

@@ -189,6 +189,34 @@ pub struct World {
     /// that proved the gap, where this step's proof starts. Only speed depends on it (the proof
     /// is exact beyond round-off, see `overlap::apart`), so it is not part of the state.
     separations: BTreeMap<(u32, u32), Vec3>,
+    /// Scratch of the broad phase, kept between steps for its buffers: the posed bodies and
+    /// the sweep order. Not part of the state (rebuilt every step).
+    posed: Vec<Posed>,
+    sweep_order: Vec<u32>,
+    /// Wall-clock seconds spent in each part of [`World::step`] so far (not part of the state).
+    pub times: StepTimes,
+}
+
+/// Where a step's time goes, wall-clock seconds summed over steps. Timing only reads the clock:
+/// results do not depend on it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepTimes {
+    /// Posing the bodies (world vertices, planes, boxes) and the sweep for box-overlapping pairs.
+    pub broad: f64,
+    /// Gap proofs and overlap polyhedra of body pairs, and their contact forces.
+    pub narrow: f64,
+    /// Body-wall contacts.
+    pub walls: f64,
+    /// Adding the contact forces to the bodies, the contact list, the energy sums.
+    pub assembly: f64,
+    /// Damping, kick, drift and rotation.
+    pub integration: f64,
+}
+
+impl StepTimes {
+    pub fn total(&self) -> f64 {
+        self.broad + self.narrow + self.walls + self.assembly + self.integration
+    }
 }
 
 /// What the narrow phase finds for one candidate pair.
@@ -226,6 +254,9 @@ impl World {
             energy: Energy::default(),
             unbalanced: f64::INFINITY,
             separations: BTreeMap::new(),
+            posed: Vec::new(),
+            sweep_order: Vec::new(),
+            times: StepTimes::default(),
         }
     }
 
@@ -302,16 +333,25 @@ impl World {
             .fold(f64::INFINITY, f64::min)
     }
 
-    fn posed(&self) -> Vec<Posed> {
-        let par = self.bodies.len() >= PARALLEL_MIN_BODIES;
-        filter_map_maybe_par(&self.bodies, par, |b| {
-            Some(self.shapes[b.shape as usize].posed(&b.pos, &b.rot, b.scale))
-        })
+    /// Poses every body into `posed`, reusing its buffers.
+    fn pose_all(&self, posed: &mut Vec<Posed>) {
+        posed.resize_with(self.bodies.len(), Posed::default);
+        let pose = |(b, p): (&Body, &mut Posed)| {
+            self.shapes[b.shape as usize].pose_into(&b.pos, &b.rot, b.scale, p)
+        };
+        if self.bodies.len() >= PARALLEL_MIN_BODIES {
+            self.bodies.par_iter().zip(posed.par_iter_mut()).for_each(pose);
+        } else {
+            self.bodies.iter().zip(posed.iter_mut()).for_each(pose);
+        }
     }
 
-    /// Candidate body pairs (i < j) whose bounding boxes overlap: sweep and prune along x.
-    fn candidate_pairs(posed: &[Posed]) -> Vec<(u32, u32)> {
-        let mut order: Vec<u32> = (0..posed.len() as u32).collect();
+    /// Candidate body pairs (i < j) whose bounding boxes overlap, ascending: sweep and prune
+    /// along x. `order` is the last sweep's order (nearly sorted again: cheap to sort).
+    fn candidate_pairs(posed: &[Posed], order: &mut Vec<u32>) -> Vec<(u32, u32)> {
+        if order.len() != posed.len() {
+            *order = (0..posed.len() as u32).collect();
+        }
         order.sort_by(|&a, &b| {
             posed[a as usize]
                 .lo
@@ -319,20 +359,42 @@ impl World {
                 .total_cmp(&posed[b as usize].lo.x)
                 .then(a.cmp(&b))
         });
-        let mut pairs = Vec::new();
-        for (k, &i) in order.iter().enumerate() {
-            let a = &posed[i as usize];
-            for &j in &order[k + 1..] {
-                let b = &posed[j as usize];
-                if b.lo.x > a.hi.x {
-                    break;
-                }
-                if a.lo.y <= b.hi.y && b.lo.y <= a.hi.y && a.lo.z <= b.hi.z && b.lo.z <= a.hi.z {
-                    pairs.push((i.min(j), i.max(j)));
+        // Each body against those after it in x, in blocks of the order (in parallel for many
+        // bodies); the pairs come out sorted either way.
+        const BLOCK: usize = 64;
+        let order = &order[..];
+        let block = |(k0, chunk): (usize, &[u32])| {
+            let mut pairs = Vec::new();
+            for (k, &i) in chunk.iter().enumerate() {
+                let a = &posed[i as usize];
+                for &j in &order[k0 * BLOCK + k + 1..] {
+                    let b = &posed[j as usize];
+                    if b.lo.x > a.hi.x {
+                        break;
+                    }
+                    if a.lo.y <= b.hi.y
+                        && b.lo.y <= a.hi.y
+                        && a.lo.z <= b.hi.z
+                        && b.lo.z <= a.hi.z
+                    {
+                        pairs.push((i.min(j), i.max(j)));
+                    }
                 }
             }
+            pairs
+        };
+        let mut pairs: Vec<(u32, u32)>;
+        if order.len() >= PARALLEL_MIN_BODIES {
+            pairs = order
+                .par_chunks(BLOCK)
+                .enumerate()
+                .flat_map_iter(block)
+                .collect();
+            pairs.par_sort_unstable();
+        } else {
+            pairs = order.chunks(BLOCK).enumerate().flat_map(block).collect();
+            pairs.sort_unstable();
         }
-        pairs.sort_unstable();
         pairs
     }
 
@@ -399,8 +461,20 @@ impl World {
             "set World::dt before stepping (see critical_dt)"
         );
         let dt = self.dt;
-        let posed = self.posed();
-        let pairs = Self::candidate_pairs(&posed);
+        let clock = std::time::Instant::now();
+        let mut lap = {
+            let mut last = clock;
+            move || {
+                let now = std::time::Instant::now();
+                let secs = (now - last).as_secs_f64();
+                last = now;
+                secs
+            }
+        };
+        let mut posed = std::mem::take(&mut self.posed);
+        self.pose_all(&mut posed);
+        let pairs = Self::candidate_pairs(&posed, &mut self.sweep_order);
+        self.times.broad += lap();
         let par = self.bodies.len() >= PARALLEL_MIN_BODIES;
         let outcomes: Vec<Outcome> = filter_map_maybe_par(&pairs, par, |&(i, j)| {
             let (bi, bj) = (&self.bodies[i as usize], &self.bodies[j as usize]);
@@ -445,6 +519,7 @@ impl World {
             }
         }
         self.separations = separations;
+        self.times.narrow += lap();
         let this = &*self;
         let wall_pairs: Vec<(u32, u32)> = (0..this.bodies.len() as u32)
             .flat_map(|i| (0..this.walls.len() as u32).map(move |w| (i, w)))
@@ -467,66 +542,70 @@ impl World {
             Some(t)
         });
         touches.extend(wall_touches);
-        // Forces in a fixed order.
+        self.times.walls += lap();
+        // Forces in a fixed order: each body adds its contacts in the order of `touches`
+        // (the order of a serial loop over them), on any number of threads.
         let nb = self.bodies.len();
-        let mut force: Vec<Vec3> = self
-            .bodies
-            .iter()
-            .map(|b| {
-                if b.fixed {
-                    Vec3::zeros()
+        let (start, ends) = ends_by_body(&touches, nb);
+        let bodies = &self.bodies;
+        let gravity = self.gravity;
+        let gather = |i: usize| {
+            let b = &bodies[i];
+            let mut f = if b.fixed {
+                Vec3::zeros()
+            } else {
+                gravity * b.mass
+            };
+            let mut m = Vec3::zeros();
+            for &e in &ends[start[i] as usize..start[i + 1] as usize] {
+                let t = &touches[(e >> 1) as usize];
+                let arm = (t.contact.point - b.pos).cross(&t.force);
+                if e & 1 == 0 {
+                    f += t.force;
+                    m += arm;
                 } else {
-                    self.gravity * b.mass
+                    f -= t.force;
+                    m -= arm;
                 }
-            })
-            .collect();
-        let mut torque = vec![Vec3::zeros(); nb];
+            }
+            (f, m)
+        };
+        let loads: Vec<(Vec3, Vec3)> = if par {
+            (0..nb).into_par_iter().map(gather).collect()
+        } else {
+            (0..nb).map(gather).collect()
+        };
         for w in &mut self.walls {
             w.clear_forces();
         }
         let mut elastic = 0.0;
         let mut wall_power = 0.0;
-        let mut contacts = BTreeMap::new();
         let mut contact_force = 0.0;
-        for t in touches {
+        for t in &touches {
             contact_force += t.force.norm();
-            let b = t.key.1 as usize;
-            force[b] += t.force;
-            torque[b] += (t.contact.point - self.bodies[b].pos).cross(&t.force);
-            match t.key.0 {
-                Partner::Body(a) => {
-                    let a = a as usize;
-                    force[a] -= t.force;
-                    torque[a] -= (t.contact.point - self.bodies[a].pos).cross(&t.force);
-                }
-                Partner::Wall(w) => {
-                    self.walls[w as usize].push(&-t.force, &t.node_weights);
-                    // The wall pushes the body with t.force while its surface moves at the
-                    // velocity the shear spring saw.
-                    wall_power += t.force.dot(&t.wall_velocity);
-                }
+            if let Partner::Wall(w) = t.key.0 {
+                self.walls[w as usize].push(&-t.force, &t.node_weights);
+                // The wall pushes the body with t.force while its surface moves at the
+                // velocity the shear spring saw.
+                wall_power += t.force.dot(&t.wall_velocity);
             }
             elastic += t.contact.elastic_energy(&self.material);
             self.energy.friction += t.slip_energy;
-            contacts.insert(t.key, t.contact);
         }
-        let mean_contact_force = contact_force / contacts.len() as f64;
-        self.contacts = contacts;
+        let mean_contact_force = contact_force / touches.len() as f64;
+        self.contacts = touches.into_iter().map(|t| (t.key, t.contact)).collect();
         self.energy.elastic = elastic;
         self.energy.wall_work += wall_power * dt;
-        // Damping, kick, drift.
+        self.times.assembly += lap();
+        // Damping, kick, drift; per body in parallel, the sums over bodies in body order.
         let alpha = self.material.damping;
         let g = self.gravity;
-        let (mut kinetic, mut damping, mut gravity_work) = (0.0, 0.0, 0.0);
-        let (mut free, mut net) = (0usize, 0.0);
-        for (i, b) in self.bodies.iter_mut().enumerate() {
+        let kick = |(b, &(force, torque)): (&mut Body, &(Vec3, Vec3))| {
             if b.fixed {
-                continue;
+                return None;
             }
-            free += 1;
-            net += force[i].norm();
             let omega = b.omega();
-            let (mut f, mut m) = (force[i], torque[i]);
+            let (mut f, mut m) = (force, torque);
             let (df, dm) = (
                 local_damping(&f, &b.vel, alpha),
                 local_damping(&m, &omega, alpha),
@@ -537,11 +616,25 @@ impl World {
             b.vel += f * (dt / b.mass);
             b.ang_mom += m * dt;
             // Damping dissipation: minus the work of the damping force over the step.
-            damping -= df.dot(&(v_old + b.vel)) * 0.5 * dt + dm.dot(&omega) * dt;
+            let damping = -(df.dot(&(v_old + b.vel)) * 0.5 * dt + dm.dot(&omega) * dt);
             b.pos += b.vel * dt;
-            gravity_work += b.mass * g.dot(&b.vel) * dt;
+            let gravity_work = b.mass * g.dot(&b.vel) * dt;
             free_rotation(&mut b.rot, &b.ang_mom, &b.moments, dt);
-            kinetic += b.kinetic_energy();
+            Some([force.norm(), damping, gravity_work, b.kinetic_energy()])
+        };
+        let terms: Vec<Option<[f64; 4]>> = if par {
+            self.bodies.par_iter_mut().zip(&loads).map(kick).collect()
+        } else {
+            self.bodies.iter_mut().zip(&loads).map(kick).collect()
+        };
+        let (mut kinetic, mut damping, mut gravity_work) = (0.0, 0.0, 0.0);
+        let (mut free, mut net) = (0usize, 0.0);
+        for [f, d, w, k] in terms.into_iter().flatten() {
+            free += 1;
+            net += f;
+            damping += d;
+            gravity_work += w;
+            kinetic += k;
         }
         for w in &mut self.walls {
             w.advance(dt);
@@ -556,7 +649,42 @@ impl World {
         self.energy.gravity_work += gravity_work;
         self.time += dt;
         self.step += 1;
+        self.posed = posed;
+        self.times.integration += lap();
     }
+}
+
+/// Each body's contact ends as compressed rows, in the order of `touches`: body `i`'s are
+/// `ends[start[i]..start[i + 1]]`, each a touch index times 2, plus 1 for the body taking the
+/// force with a minus sign (body A of a pair).
+fn ends_by_body(touches: &[Touch], bodies: usize) -> (Vec<u32>, Vec<u32>) {
+    let partner = |t: &Touch| match t.key.0 {
+        Partner::Body(a) => Some(a as usize),
+        Partner::Wall(_) => None,
+    };
+    let mut start = vec![0u32; bodies + 1];
+    for t in touches {
+        start[t.key.1 as usize + 1] += 1;
+        if let Some(a) = partner(t) {
+            start[a + 1] += 1;
+        }
+    }
+    for i in 0..bodies {
+        start[i + 1] += start[i];
+    }
+    let mut next = start.clone();
+    let mut ends = vec![0u32; start[bodies] as usize];
+    for (k, t) in touches.iter().enumerate() {
+        let mut put = |body: usize, minus: u32| {
+            ends[next[body] as usize] = (k as u32) << 1 | minus;
+            next[body] += 1;
+        };
+        put(t.key.1 as usize, 0);
+        if let Some(a) = partner(t) {
+            put(a, 1);
+        }
+    }
+    (start, ends)
 }
 
 /// Below this many bodies a step runs on one thread: waking the pool every step costs more
