@@ -168,6 +168,20 @@ fn bad_scenes_and_arguments() {
         b"",
         &["opening /nonexistent/scene.txt"],
     );
+    // Usage errors (clap's exit code 2).
+    for (args, needle) in [
+        (&["--peer-abrade", "2", "--steps", "1"][..], "--import-peer"),
+        (
+            &["--import-peer", "x.txt", "--peer-abrade", "5", "--steps", "1"][..],
+            "'5' for '--peer-abrade",
+        ),
+    ] {
+        let out = run("dem", args, &scene);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(needle), "expected '{needle}' in: {err}");
+        assert!(out.stdout.is_empty());
+    }
 }
 
 #[test]

@@ -192,6 +192,28 @@ mod tests {
     }
 
     #[test]
+    fn abraded_particles_are_smoother_and_lie_inside_the_polyhedron() {
+        let sharp = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>, 0).unwrap();
+        let b0 = &sharp.bodies[0];
+        let outer = sharp.shapes[0].posed(&b0.pos, &b0.rot, b0.scale);
+        for levels in [1, 2] {
+            let w = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>, levels).unwrap();
+            let (s, b) = (&w.shapes[0], &w.bodies[0]);
+            assert!(s.vertices.len() > sharp.shapes[0].vertices.len() * 3);
+            let ratio = s.volume / sharp.shapes[0].volume;
+            // A tetrahedron shrinks most under Catmull-Clark (level 1 keeps 20 %).
+            assert!(ratio < 1.0 && ratio > 0.1, "level {levels}: volume ratio {ratio}");
+            // Every abraded vertex is inside the tetrahedron (its four planes).
+            let posed = s.posed(&b.pos, &b.rot, b.scale);
+            for v in &posed.vertices {
+                for (n, d) in outer.normals.iter().zip(&outer.offsets) {
+                    assert!(n.dot(v) <= d + 1e-15, "level {levels}: vertex {v} outside");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn bad_peer_input() {
         assert!(
             read_peer_scene("0 4 0.01 0 0 0 4 1 2 3\n".as_bytes(), None::<&[u8]>, 0)
