@@ -347,20 +347,29 @@ impl World {
     }
 
     /// Candidate body pairs (i < j) whose bounding boxes overlap, ascending: sweep and prune
-    /// along x. `order` is the last sweep's order (nearly sorted again: cheap to sort).
+    /// along the axis on which the box centres spread most (z for a tall falling cloud, where
+    /// x would pair every body with a tenth of the others). `order` is the last sweep's order
+    /// (nearly sorted again: cheap to sort). Which axis is swept changes the cost, not the pairs.
     fn candidate_pairs(posed: &[Posed], order: &mut Vec<u32>) -> Vec<(u32, u32)> {
         if order.len() != posed.len() {
             *order = (0..posed.len() as u32).collect();
         }
+        let n = posed.len().max(1) as f64;
+        let centre = |p: &Posed| (p.lo + p.hi) * 0.5;
+        let mean = posed.iter().map(centre).sum::<Vec3>() / n;
+        let spread = posed
+            .iter()
+            .map(|p| (centre(p) - mean).map(|c| c * c))
+            .sum::<Vec3>();
+        let s = spread.imax();
+        let (t, u) = ((s + 1) % 3, (s + 2) % 3);
         order.sort_by(|&a, &b| {
-            posed[a as usize]
-                .lo
-                .x
-                .total_cmp(&posed[b as usize].lo.x)
+            posed[a as usize].lo[s]
+                .total_cmp(&posed[b as usize].lo[s])
                 .then(a.cmp(&b))
         });
-        // Each body against those after it in x, in blocks of the order (in parallel for many
-        // bodies); the pairs come out sorted either way.
+        // Each body against those after it along the axis, in blocks of the order (in parallel
+        // for many bodies); the pairs come out sorted either way.
         const BLOCK: usize = 64;
         let order = &order[..];
         let block = |(k0, chunk): (usize, &[u32])| {
@@ -369,13 +378,13 @@ impl World {
                 let a = &posed[i as usize];
                 for &j in &order[k0 * BLOCK + k + 1..] {
                     let b = &posed[j as usize];
-                    if b.lo.x > a.hi.x {
+                    if b.lo[s] > a.hi[s] {
                         break;
                     }
-                    if a.lo.y <= b.hi.y
-                        && b.lo.y <= a.hi.y
-                        && a.lo.z <= b.hi.z
-                        && b.lo.z <= a.hi.z
+                    if a.lo[t] <= b.hi[t]
+                        && b.lo[t] <= a.hi[t]
+                        && a.lo[u] <= b.hi[u]
+                        && b.lo[u] <= a.hi[u]
                     {
                         pairs.push((i.min(j), i.max(j)));
                     }
