@@ -335,3 +335,94 @@ fn grazing_vertex_contacts_have_the_depth_of_their_penetration() {
     );
     assert!(checked > 1000, "only {checked} caps checked");
 }
+
+/// Large hulls find the vertices in the culling slab by climbing the vertex graph from a few
+/// probes instead of scanning every vertex. The vertex sets are the same, so the overlap must be
+/// the same, bit for bit, as with the scan: checked on Ab_2 and Ab_3 hulls (about 200 and 770
+/// vertices) and on a flat ellipsoid's hull (nearly coplanar vertices), from grazing to deep
+/// overlaps and separated poses, culled along several axes.
+#[test]
+fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
+    let mut large = Vec::new();
+    for (k, levels) in [(6, 3), (9, 2), (14, 3), (11, 2)] {
+        let p = polygen::generate(
+            &polygen::Params {
+                faces: k,
+                ..Default::default()
+            },
+            5,
+            0,
+        )
+        .unwrap();
+        let smooth = shared::subdiv::subdivide(&p.mesh, &p.mesh.topology(None).unwrap(), levels);
+        large.push(Shape::from_mesh(&smooth).unwrap());
+    }
+    // A flat ellipsoid (1 : 1 : 0.03) of 400 random surface points: many nearly coplanar
+    // vertices on its faces, where heights differ by little.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let flat: Vec<Vec3> = (0..400)
+        .map(|_| {
+            let z = 2.0 * unit_f64(rng.next_u64()) - 1.0;
+            let phi = std::f64::consts::TAU * unit_f64(rng.next_u64());
+            let r = (1.0 - z * z).sqrt();
+            Vec3::new(r * phi.cos(), r * phi.sin(), 0.03 * z)
+        })
+        .collect();
+    large.push(Shape::from_mesh(&shared::hull::convex_hull(&flat).unwrap().mesh).unwrap());
+    for s in &large {
+        assert!(s.climb.is_some(), "{} vertices: too few to climb", s.vertices.len());
+    }
+    let scanning: Vec<Shape> = large
+        .iter()
+        .map(|s| Shape {
+            climb: None,
+            ..s.clone()
+        })
+        .collect();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let (mut touching, mut apart) = (0, 0);
+    for trial in 0..800 {
+        let (i, j) = (trial % large.len(), (trial / large.len()) % large.len());
+        let a = large[i].posed(&Vec3::zeros(), &random_rotation(&mut rng), 1.0);
+        let dir = Vec3::new(
+            unit_f64(rng.next_u64()) - 0.5,
+            unit_f64(rng.next_u64()) - 0.5,
+            unit_f64(rng.next_u64()) - 0.5,
+        )
+        .normalize();
+        let rb = random_rotation(&mut rng);
+        // Half the poses near first touch along `dir` (bisection), half anywhere within reach.
+        let at = |t: f64| large[j].posed(&(dir * t), &rb, 1.0);
+        let reach = large[i].radius + large[j].radius;
+        let t = if trial % 2 == 0 {
+            let (mut lo, mut hi) = (0.0, reach);
+            for _ in 0..40 {
+                let mid = 0.5 * (lo + hi);
+                if overlap(&scanning[i], &a, &scanning[j], &at(mid)).is_some() {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            hi - reach * 10f64.powf(-1.0 - 9.0 * unit_f64(rng.next_u64()))
+        } else {
+            reach * unit_f64(rng.next_u64())
+        };
+        let b = at(t);
+        for axis in [dir, centre(&b) - centre(&a), dir.cross(&Vec3::new(0.3, -0.5, 0.8))] {
+            let climbed = overlap_along(&large[i], &a, &large[j], &b, &axis);
+            let scanned = overlap_along(&scanning[i], &a, &scanning[j], &b, &axis);
+            assert_eq!(climbed, scanned, "trial {trial}, axis {axis:?}");
+            if climbed.is_some() {
+                touching += 1;
+            } else {
+                apart += 1;
+            }
+        }
+    }
+    assert!(touching > 800 && apart > 200, "{touching} touching, {apart} apart");
+}
+
+fn centre(p: &Posed) -> Vec3 {
+    (p.lo + p.hi) * 0.5
+}

@@ -118,14 +118,115 @@ struct Clip {
 #[derive(Default)]
 struct Scratch {
     clip: Clip,
-    /// Heights of A's and B's vertices along the slab's axis.
-    heights_a: Vec<f64>,
-    heights_b: Vec<f64>,
+    /// A's and B's vertices along the slab's axis.
+    side_a: Side,
+    side_b: Side,
     /// Faces of A and B that meet the slab, and those of them whose planes cut the box.
     faces_a: Vec<u32>,
     faces_b: Vec<u32>,
     planes_a: Vec<u32>,
     planes_b: Vec<u32>,
+}
+
+/// One body's vertices along the slab's axis, facing the other body: heights `sign n . v`
+/// (A: `sign` 1, B: -1, so that both reach towards the other), its top, and the vertices that
+/// reach into the slab. A small shape has every height computed; a large one ([`Shape::climb`])
+/// only those its climb and its walk over the slab visit (the others stay NaN).
+#[derive(Default)]
+struct Side {
+    heights: Vec<f64>,
+    top: usize,
+    reach: Vec<u32>,
+    stack: Vec<u32>,
+    seen: Vec<bool>,
+}
+
+impl Side {
+    /// The greatest height of a vertex of `p` (a posed `s`) along `sign n`.
+    fn climb_to_top(&mut self, s: &Shape, p: &Posed, n: &Vec3, sign: f64) -> f64 {
+        let vs = &p.vertices;
+        self.heights.clear();
+        let Some(c) = &s.climb else {
+            self.heights.extend(vs.iter().map(|v| sign * n.dot(v)));
+            let (mut best, mut at) = (f64::NEG_INFINITY, 0);
+            for (i, &h) in self.heights.iter().enumerate() {
+                if h > best {
+                    (best, at) = (h, i);
+                }
+            }
+            self.top = at;
+            return best;
+        };
+        self.heights.resize(vs.len(), f64::NAN);
+        let heights = &mut self.heights;
+        let mut height = |i: usize| {
+            if heights[i].is_nan() {
+                heights[i] = sign * n.dot(&vs[i]);
+            }
+            heights[i]
+        };
+        let (mut best, mut at) = (f64::NEG_INFINITY, 0);
+        for &i in &c.probes {
+            let h = height(i as usize);
+            if h > best {
+                (best, at) = (h, i as usize);
+            }
+        }
+        // Steepest ascent: on a convex polytope a vertex with no higher neighbour is a top.
+        loop {
+            let mut next = None;
+            for &w in c.neighbors(at) {
+                let h = height(w as usize);
+                if h > best {
+                    (best, next) = (h, Some(w as usize));
+                }
+            }
+            match next {
+                Some(w) => at = w,
+                None => break,
+            }
+        }
+        self.top = at;
+        best
+    }
+
+    /// The vertices of height at least `floor` (after [`Side::climb_to_top`]), into `reach`:
+    /// a scan, or a walk from the top over the graph (the vertices above a level of a convex
+    /// polytope are connected, each by a rising path to the top).
+    fn reach_down_to(&mut self, s: &Shape, p: &Posed, n: &Vec3, sign: f64, floor: f64) {
+        self.reach.clear();
+        let Some(c) = &s.climb else {
+            self.reach.extend(
+                (0..self.heights.len() as u32).filter(|&i| self.heights[i as usize] >= floor),
+            );
+            return;
+        };
+        let vs = &p.vertices;
+        let (heights, seen) = (&mut self.heights, &mut self.seen);
+        seen.clear();
+        seen.resize(vs.len(), false);
+        seen[self.top] = true;
+        self.stack.clear();
+        self.stack.push(self.top as u32);
+        self.reach.push(self.top as u32);
+        while let Some(v) = self.stack.pop() {
+            for &w in c.neighbors(v as usize) {
+                let wi = w as usize;
+                if seen[wi] {
+                    continue;
+                }
+                if heights[wi].is_nan() {
+                    heights[wi] = sign * n.dot(&vs[wi]);
+                }
+                if heights[wi] >= floor {
+                    seen[wi] = true;
+                    self.reach.push(w);
+                    self.stack.push(w);
+                }
+            }
+        }
+        self.reach.sort_unstable();
+    }
 }
 
 /// Cutting planes beyond this many are tested face by face instead of by vertex codes.
@@ -303,13 +404,11 @@ fn clip_faces(
     }
 }
 
-/// The faces of `s` around the vertices whose `heights` pass `keep`, ascending, into `out`.
-fn faces_around(s: &Shape, heights: &[f64], keep: impl Fn(f64) -> bool, out: &mut Vec<u32>) {
+/// The faces of `s` around the vertices `reach`, ascending, into `out`.
+fn faces_around(s: &Shape, reach: &[u32], out: &mut Vec<u32>) {
     out.clear();
-    for (i, &h) in heights.iter().enumerate() {
-        if keep(h) {
-            out.extend_from_slice(s.faces_at(i));
-        }
+    for &i in reach {
+        out.extend_from_slice(s.faces_at(i as usize));
     }
     out.sort_unstable();
     out.dedup();
@@ -385,19 +484,15 @@ pub(crate) fn overlap_parts(
     SCRATCH.with_borrow_mut(|sc| {
         let Scratch {
             clip,
-            heights_a,
-            heights_b,
+            side_a,
+            side_b,
             faces_a,
             faces_b,
             planes_a,
             planes_b,
         } = sc;
-        heights_a.clear();
-        heights_a.extend(a.vertices.iter().map(|v| n.dot(v)));
-        heights_b.clear();
-        heights_b.extend(b.vertices.iter().map(|v| n.dot(v)));
-        let hi_n = heights_a.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let lo_n = heights_b.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi_n = side_a.climb_to_top(sa, a, &n, 1.0);
+        let lo_n = -side_b.climb_to_top(sb, b, &n, -1.0);
         if lo_n >= hi_n {
             return None; // `n` separates the bodies
         }
@@ -411,8 +506,10 @@ pub(crate) fn overlap_parts(
         // exactly when one of its vertices does. Within the slab, B is the intersection of
         // the half-spaces of its faces that meet the slab (the others hold B ∩ slab), and
         // of those only the planes that cut the box matter.
-        faces_around(sa, heights_a, |h| h >= lo_n, faces_a);
-        faces_around(sb, heights_b, |h| h <= hi_n, faces_b);
+        side_a.reach_down_to(sa, a, &n, 1.0, lo_n);
+        side_b.reach_down_to(sb, b, &n, -1.0, -hi_n);
+        faces_around(sa, &side_a.reach, faces_a);
+        faces_around(sb, &side_b.reach, faces_b);
         let cuts = |p: &Posed, faces: &[u32], out: &mut Vec<u32>| {
             out.clear();
             out.extend(faces.iter().copied().filter(|&j| {

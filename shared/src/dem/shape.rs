@@ -43,6 +43,84 @@ pub struct Shape {
     /// The source mesh's centroid and the rotation from the principal frame to the mesh frame.
     pub centroid_in_mesh: Vec3,
     pub frame_in_mesh: UnitQuaternion<f64>,
+    /// For shapes of many vertices: the graph to find extreme vertices by hill climbing.
+    pub climb: Option<Climb>,
+}
+
+/// Below this many vertices the narrow phase scans them all (cheaper than climbing).
+pub const CLIMB_MIN: usize = 48;
+
+/// The vertex graph of a large convex shape, for finding the vertices above a plane without
+/// scanning them all. Neighbours are the other vertices of the faces around a vertex (for a
+/// triangulated hull, its edge neighbours; a vertex lying inside a face's edge still reaches the
+/// face's corners). A linear function on a convex polytope has no local maximum on this graph
+/// but its maximum, and the vertices above any level stay connected through it.
+#[derive(Clone, Debug)]
+pub struct Climb {
+    neighbor_start: Vec<u32>,
+    neighbors: Vec<u32>,
+    /// Starting points: the vertices farthest along the 26 directions of a 3x3x3 cube's
+    /// faces, edges and corners (shape frame), deduplicated.
+    pub probes: Vec<u32>,
+}
+
+impl Climb {
+    /// The graph of a shape with `vertices` and faces (compressed rows, with the faces around
+    /// each vertex), or `None` below [`CLIMB_MIN`] vertices.
+    pub fn of(
+        vertices: &[Vec3],
+        face_start: &[u32],
+        face_verts: &[u32],
+        vertex_face_start: &[u32],
+        vertex_faces: &[u32],
+    ) -> Option<Climb> {
+        if vertices.len() < CLIMB_MIN {
+            return None;
+        }
+        let mut neighbor_start = vec![0u32];
+        let mut neighbors = Vec::new();
+        let mut around = Vec::new();
+        for v in 0..vertices.len() {
+            around.clear();
+            let faces = vertex_face_start
+                .get(v..v + 2)
+                .map_or(&[][..], |r| &vertex_faces[r[0] as usize..r[1] as usize]);
+            for &f in faces {
+                let f = f as usize;
+                let corners = &face_verts[face_start[f] as usize..face_start[f + 1] as usize];
+                around.extend(corners.iter().copied().filter(|&w| w as usize != v));
+            }
+            around.sort_unstable();
+            around.dedup();
+            neighbors.extend_from_slice(&around);
+            neighbor_start.push(neighbors.len() as u32);
+        }
+        let mut probes: Vec<u32> = (0..27)
+            .filter(|&k| k != 13)
+            .map(|k| {
+                let d = Vec3::new(
+                    (k % 3) as f64 - 1.0,
+                    ((k / 3) % 3) as f64 - 1.0,
+                    (k / 9) as f64 - 1.0,
+                );
+                (0..vertices.len())
+                    .max_by(|&a, &b| d.dot(&vertices[a]).total_cmp(&d.dot(&vertices[b])))
+                    .unwrap_or(0) as u32
+            })
+            .collect();
+        probes.sort_unstable();
+        probes.dedup();
+        Some(Climb {
+            neighbor_start,
+            neighbors,
+            probes,
+        })
+    }
+
+    /// The vertices next to `v`.
+    pub fn neighbors(&self, v: usize) -> &[u32] {
+        &self.neighbors[self.neighbor_start[v] as usize..self.neighbor_start[v + 1] as usize]
+    }
 }
 
 impl Shape {
@@ -70,6 +148,13 @@ impl Shape {
         let radius = vertices.iter().map(|v| v.norm()).fold(0.0, f64::max);
         let frame = UnitQuaternion::from_matrix(&rot);
         let (vertex_face_start, vertex_faces) = incidence(&h.mesh.face_start, &h.mesh.face_verts);
+        let climb = Climb::of(
+            &vertices,
+            &h.mesh.face_start,
+            &h.mesh.face_verts,
+            &vertex_face_start,
+            &vertex_faces,
+        );
         Ok(Shape {
             name: mesh.name.clone(),
             vertices,
@@ -84,6 +169,7 @@ impl Shape {
             radius,
             centroid_in_mesh: props.centroid,
             frame_in_mesh: frame,
+            climb,
         })
     }
 

@@ -652,6 +652,13 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
         let face_start = std::mem::take(&mut mesh.face_start);
         let face_verts = std::mem::take(&mut mesh.face_verts);
         let (vertex_face_start, vertex_faces) = super::shape::incidence(&face_start, &face_verts);
+        let climb = super::shape::Climb::of(
+            &mesh.vertices,
+            &face_start,
+            &face_verts,
+            &vertex_face_start,
+            &vertex_faces,
+        );
         return Ok(Shape {
             name: s.name,
             vertices: mesh.vertices,
@@ -671,6 +678,7 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
                 p.frame_in_mesh[2],
                 p.frame_in_mesh[3],
             )),
+            climb,
         });
     }
     mesh.topology(None)

@@ -339,6 +339,7 @@ fn prism(k: usize) -> &'static Shape {
             radius: 0.0,
             centroid_in_mesh: Vec3::zeros(),
             frame_in_mesh: UnitQuaternion::identity(),
+            climb: None,
         }
     };
     &PRISMS.get_or_init(|| [make(3), make(4)])[k - 3]
