@@ -6,6 +6,8 @@
 # - Yade's own settled state loaded as it is (its volumetric law leaves overlaps of 0.23 mm:
 #   deep contacts under our law, so this measures deep-overlap cost, not a settled bed);
 # - the 2000-particle scene settled the same way (made once, about 40 minutes; BED2000=0 skips);
+# - the 500 bed with every particle turned into its Ab_3 hull (`dem --peer-abrade 3`), settled
+#   the same way (made once, about an hour; BEDAB3=0 skips);
 # - the 2000-particle scene's first steps (a loose cloud: broad phase and wall checks);
 # - Yade itself on its own settled 500 bed, when `yade` is installed (settled once, 16 minutes).
 # Each of our rows also prints where the step time goes and the peak resident memory.
@@ -32,6 +34,12 @@ if [ ! -f "$bed2000" ] && [ "${BED2000:-1}" = 1 ]; then
   PEERS=$peers "$(dirname "$0")/settle-peer.sh" 2000 "$bed2000.tmp" 2>"$out/settle2000.log"
   mv "$bed2000.tmp" "$bed2000"
 fi
+bedab3=$out/ab3bed500.jsonl
+if [ ! -f "$bedab3" ] && [ "${BEDAB3:-1}" = 1 ]; then
+  echo "bench-dem: settling the 500 bed as Ab_3 hulls at kn = 1e8 N/m into $bedab3 (once, about an hour; BEDAB3=0 skips)"
+  PEERS=$peers ABRADE=3 "$(dirname "$0")/settle-peer.sh" 500 "$bedab3.tmp" 2>"$out/settle-ab3.log"
+  mv "$bedab3.tmp" "$bedab3"
+fi
 # Yade on the same machine in the same run, when it is installed: its own settled 500 bed
 # (the peer README's recipe, about 16 minutes once), then the same timed steps from it.
 yade_state=$out/yade-settled500.xml.bz2
@@ -54,6 +62,11 @@ done
 if [ -f "$bed2000" ]; then
   for th in 1 2; do
     row "2000 bed settled at kn = 1e8 (ours)" "$th" --steps "$steps" < "$bed2000"
+  done
+fi
+if [ -f "$bedab3" ]; then
+  for th in 1 2; do
+    row "500 bed of Ab_3 hulls at kn = 1e8 (ours)" "$th" --steps "$steps" < "$bedab3"
   done
 fi
 for th in 1 2; do

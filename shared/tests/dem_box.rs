@@ -83,20 +83,43 @@ fn box_scene(material: Material) -> World {
     w
 }
 
-/// Runs the scene for `t` seconds; returns the largest drift of the audit's balance, the
-/// largest kinetic energy reached, the work of gravity, and the most contacts at once.
-fn run(mut w: World, t: f64) -> (f64, f64, f64, usize) {
+/// What a run of the box scene measured.
+struct Run {
+    /// Largest drift of the audit's balance from its value after the first step, J.
+    drift: f64,
+    peak_kinetic: f64,
+    gravity_work: f64,
+    /// Most contacts at once.
+    contacts: usize,
+    /// Contacts that began during the run (collisions, with walls or bodies).
+    collisions: usize,
+}
+
+/// Runs the scene for `t` seconds.
+fn run(mut w: World, t: f64) -> Run {
     w.step();
     let start = w.energy.balance();
     let (mut drift, mut peak_kinetic): (f64, f64) = (0.0, 0.0);
-    let mut contacts = 0;
+    let (mut contacts, mut collisions) = (0, 0);
     while w.time < t {
+        let before: Vec<_> = w.contacts.keys().copied().collect();
         w.step();
+        collisions += w
+            .contacts
+            .keys()
+            .filter(|k| before.binary_search(k).is_err())
+            .count();
         drift = drift.max((w.energy.balance() - start).abs());
         peak_kinetic = peak_kinetic.max(w.energy.kinetic);
         contacts = contacts.max(w.contacts.len());
     }
-    (drift, peak_kinetic, w.energy.gravity_work, contacts)
+    Run {
+        drift,
+        peak_kinetic,
+        gravity_work: w.energy.gravity_work,
+        contacts,
+        collisions,
+    }
 }
 
 fn soft() -> Material {
@@ -121,24 +144,34 @@ fn soft() -> Material {
 #[test]
 #[ignore = "known failure: 5.9 % energy drift in undamped impacts, see the doc comment"]
 fn two_hundred_mixed_polyhedra_in_a_box_keep_their_energy() {
+    keep_their_energy(soft());
+}
+
+/// Test 6's conservative half with the stiffness of `material`: undamped and frictionless, the
+/// energy stays within 1 % of the peak kinetic energy.
+fn keep_their_energy(material: Material) {
     let w = box_scene(Material {
         friction: 0.0,
         wall_friction: 0.0,
         damping: 0.0,
-        ..soft()
+        ..material
     });
-    let (drift, peak, gravity, contacts) = run(w, T);
+    let r = run(w, T);
     eprintln!(
-        "conservative: drift {drift:.3e} J, peak kinetic {peak:.3e} J, gravity work {gravity:.3e} J, {contacts} contacts"
+        "conservative, kn = {:e}: drift {:.3e} J, peak kinetic {:.3e} J, gravity work {:.3e} J, {} contacts at most, {} collisions",
+        material.kn, r.drift, r.peak_kinetic, r.gravity_work, r.contacts, r.collisions
     );
-    // Not vacuous: the bodies collide with each other and the walls.
+    // Not vacuous: every body hits the floor or another body, on average once at least.
     assert!(
-        contacts >= 10,
-        "the bodies must collide: {contacts} contacts"
+        r.collisions >= BODIES,
+        "the bodies must collide: {} collisions",
+        r.collisions
     );
     assert!(
-        drift < 0.01 * peak,
-        "energy drift {drift:e} J vs peak kinetic {peak:e} J"
+        r.drift < 0.01 * r.peak_kinetic,
+        "energy drift {:e} J vs peak kinetic {:e} J",
+        r.drift,
+        r.peak_kinetic
     );
 }
 
@@ -149,25 +182,9 @@ fn two_hundred_mixed_polyhedra_in_a_box_keep_their_energy() {
 #[test]
 #[ignore = "tens of minutes: 30x the steps of the soft scene"]
 fn two_hundred_mixed_polyhedra_in_a_box_keep_their_energy_at_the_papers_stiffness() {
-    let w = box_scene(Material {
-        friction: 0.0,
-        wall_friction: 0.0,
-        damping: 0.0,
-        ..Default::default()
-    });
-    assert_eq!(w.material.kn, 1e8, "the paper's stiffness");
-    let (drift, peak, gravity, contacts) = run(w, T);
-    eprintln!(
-        "conservative, kn = 1e8: drift {drift:.3e} J, peak kinetic {peak:.3e} J, gravity work {gravity:.3e} J, {contacts} contacts"
-    );
-    assert!(
-        contacts >= 10,
-        "the bodies must collide: {contacts} contacts"
-    );
-    assert!(
-        drift < 0.01 * peak,
-        "energy drift {drift:e} J vs peak kinetic {peak:e} J"
-    );
+    let paper = Material::default();
+    assert_eq!((paper.kn, paper.ks), (1e8, 5e7), "the paper's stiffness");
+    keep_their_energy(paper);
 }
 
 /// Issue "DEM engine", test 6, dissipative half: with friction and local damping, what they
@@ -182,7 +199,12 @@ fn two_hundred_mixed_polyhedra_in_a_box_close_the_energy_audit() {
         wall_friction: 0.5,
         ..soft()
     });
-    let (drift, _, gravity, contacts) = run(w, T);
+    let Run {
+        drift,
+        gravity_work: gravity,
+        contacts,
+        ..
+    } = run(w, T);
     eprintln!(
         "dissipative: audit drift {drift:.3e} J, gravity work {gravity:.3e} J, {contacts} contacts"
     );
