@@ -14,8 +14,9 @@
 //!   (Dullweber, Leimkuhler, McLachlan 1997): |L| is exact, the energy error stays bounded, and
 //!   the intermediate-axis (Dzhanibekov) flip comes out right.
 //!
-//! Determinism: contact forces are computed in parallel into a list in pair order, then added to
-//! the bodies in that order; contacts live in a `BTreeMap`. Same bytes for any thread count.
+//! Determinism: contact forces are computed in parallel into a list in pair order; each body
+//! (in parallel) adds its own in that order, and sums over bodies are taken in body order;
+//! contacts live in a `BTreeMap`. Same bytes for any thread count.
 //!
 //! Energy audit: kinetic + elastic (normal and shear springs) + friction and damping
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
