@@ -370,7 +370,11 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
         .collect();
     large.push(Shape::from_mesh(&shared::hull::convex_hull(&flat).unwrap().mesh).unwrap());
     for s in &large {
-        assert!(s.climb.is_some(), "{} vertices: too few to climb", s.vertices.len());
+        assert!(
+            s.climb.is_some(),
+            "{} vertices: too few to climb",
+            s.vertices.len()
+        );
     }
     let scanning: Vec<Shape> = large
         .iter()
@@ -409,7 +413,11 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
             reach * unit_f64(rng.next_u64())
         };
         let b = at(t);
-        for axis in [dir, centre(&b) - centre(&a), dir.cross(&Vec3::new(0.3, -0.5, 0.8))] {
+        for axis in [
+            dir,
+            centre(&b) - centre(&a),
+            dir.cross(&Vec3::new(0.3, -0.5, 0.8)),
+        ] {
             let climbed = overlap_along(&large[i], &a, &large[j], &b, &axis);
             let scanned = overlap_along(&scanning[i], &a, &scanning[j], &b, &axis);
             assert_eq!(climbed, scanned, "trial {trial}, axis {axis:?}");
@@ -420,7 +428,10 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
             }
         }
     }
-    assert!(touching > 800 && apart > 200, "{touching} touching, {apart} apart");
+    assert!(
+        touching > 800 && apart > 200,
+        "{touching} touching, {apart} apart"
+    );
 }
 
 fn centre(p: &Posed) -> Vec3 {

@@ -172,7 +172,14 @@ fn bad_scenes_and_arguments() {
     for (args, needle) in [
         (&["--peer-abrade", "2", "--steps", "1"][..], "--import-peer"),
         (
-            &["--import-peer", "x.txt", "--peer-abrade", "5", "--steps", "1"][..],
+            &[
+                "--import-peer",
+                "x.txt",
+                "--peer-abrade",
+                "5",
+                "--steps",
+                "1",
+            ][..],
             "'5' for '--peer-abrade",
         ),
     ] {

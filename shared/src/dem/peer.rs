@@ -202,7 +202,10 @@ mod tests {
             assert!(s.vertices.len() > sharp.shapes[0].vertices.len() * 3);
             let ratio = s.volume / sharp.shapes[0].volume;
             // A tetrahedron shrinks most under Catmull-Clark (level 1 keeps 20 %).
-            assert!(ratio < 1.0 && ratio > 0.1, "level {levels}: volume ratio {ratio}");
+            assert!(
+                ratio < 1.0 && ratio > 0.1,
+                "level {levels}: volume ratio {ratio}"
+            );
             // Every abraded vertex is inside the tetrahedron (its four planes).
             let posed = s.posed(&b.pos, &b.rot, b.scale);
             for v in &posed.vertices {

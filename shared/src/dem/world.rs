@@ -341,7 +341,10 @@ impl World {
             self.shapes[b.shape as usize].pose_into(&b.pos, &b.rot, b.scale, p)
         };
         if self.bodies.len() >= PARALLEL_MIN_BODIES {
-            self.bodies.par_iter().zip(posed.par_iter_mut()).for_each(pose);
+            self.bodies
+                .par_iter()
+                .zip(posed.par_iter_mut())
+                .for_each(pose);
         } else {
             self.bodies.iter().zip(posed.iter_mut()).for_each(pose);
         }
