@@ -159,12 +159,7 @@ impl Side {
         };
         self.heights.resize(vs.len(), f64::NAN);
         let heights = &mut self.heights;
-        let mut height = |i: usize| {
-            if heights[i].is_nan() {
-                heights[i] = sign * n.dot(&vs[i]);
-            }
-            heights[i]
-        };
+        let mut height = |i: usize| lazy_height(heights, vs, n, sign, i);
         let (mut best, mut at) = (f64::NEG_INFINITY, 0);
         for &i in &c.probes {
             let h = height(i as usize);
@@ -215,10 +210,7 @@ impl Side {
                 if seen[wi] {
                     continue;
                 }
-                if heights[wi].is_nan() {
-                    heights[wi] = sign * n.dot(&vs[wi]);
-                }
-                if heights[wi] >= floor {
+                if lazy_height(heights, vs, n, sign, wi) >= floor {
                     seen[wi] = true;
                     self.reach.push(w);
                     self.stack.push(w);
@@ -227,6 +219,14 @@ impl Side {
         }
         self.reach.sort_unstable();
     }
+}
+
+/// Vertex `i`'s height `sign n . v`, computed the first time it is asked for (NaN until then).
+fn lazy_height(heights: &mut [f64], vs: &[Vec3], n: &Vec3, sign: f64, i: usize) -> f64 {
+    if heights[i].is_nan() {
+        heights[i] = sign * n.dot(&vs[i]);
+    }
+    heights[i]
 }
 
 /// Cutting planes beyond this many are tested face by face instead of by vertex codes.
