@@ -56,18 +56,24 @@ fn sat_gap(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed) -> f64 {
 fn shapes() -> Vec<(Shape, f64)> {
     let mut out = vec![(Shape::from_mesh(&cube(0.5)).unwrap(), 0.02)];
     for (k, size) in [(6, 0.01), (9, 0.04), (14, 0.025), (8, 0.01)] {
-        let p = polygen::generate(
-            &polygen::Params {
-                faces: k,
-                ..Default::default()
-            },
-            3,
-            0,
-        )
-        .unwrap();
-        out.push((Shape::from_mesh(&p.mesh).unwrap(), size / 2.0));
+        out.push((Shape::from_mesh(&template(k, 3)).unwrap(), size / 2.0));
     }
     out
+}
+
+/// The polygen template of `k` faces from `seed` (first object).
+fn template(k: usize, seed: u64) -> shared::mesh::PolyMesh {
+    let params = polygen::Params {
+        faces: k,
+        ..Default::default()
+    };
+    polygen::generate(&params, seed, 0).unwrap().mesh
+}
+
+/// A unit vector from a uniform draw in the cube [-1/2, 1/2]^3.
+fn random_direction(rng: &mut impl RngCore) -> Vec3 {
+    let mut u = || unit_f64(rng.next_u64()) - 0.5;
+    Vec3::new(u(), u(), u()).normalize()
 }
 
 fn random_rotation(rng: &mut impl RngCore) -> UnitQuaternion<f64> {
@@ -85,12 +91,7 @@ fn random_poses_agree_with_the_separating_axis_test() {
         let (sb, kb) = &shapes[(trial / shapes.len()) % shapes.len()];
         let a = sa.posed(&Vec3::zeros(), &random_rotation(&mut rng), *ka);
         let reach = sa.radius * ka + sb.radius * kb;
-        let dir = Vec3::new(
-            unit_f64(rng.next_u64()) - 0.5,
-            unit_f64(rng.next_u64()) - 0.5,
-            unit_f64(rng.next_u64()) - 0.5,
-        )
-        .normalize();
+        let dir = random_direction(&mut rng);
         let dist = reach * unit_f64(rng.next_u64());
         let b = sb.posed(&(dir * dist), &random_rotation(&mut rng), *kb);
         let gap = sat_gap(sa, &a, sb, &b);
@@ -345,16 +346,8 @@ fn grazing_vertex_contacts_have_the_depth_of_their_penetration() {
 fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
     let mut large = Vec::new();
     for (k, levels) in [(6, 3), (9, 2), (14, 3), (11, 2)] {
-        let p = polygen::generate(
-            &polygen::Params {
-                faces: k,
-                ..Default::default()
-            },
-            5,
-            0,
-        )
-        .unwrap();
-        let smooth = shared::subdiv::subdivide(&p.mesh, &p.mesh.topology(None).unwrap(), levels);
+        let p = template(k, 5);
+        let smooth = shared::subdiv::subdivide(&p, &p.topology(None).unwrap(), levels);
         large.push(Shape::from_mesh(&smooth).unwrap());
     }
     // A flat ellipsoid (1 : 1 : 0.03) of 400 random surface points: many nearly coplanar
@@ -388,12 +381,7 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
     for trial in 0..800 {
         let (i, j) = (trial % large.len(), (trial / large.len()) % large.len());
         let a = large[i].posed(&Vec3::zeros(), &random_rotation(&mut rng), 1.0);
-        let dir = Vec3::new(
-            unit_f64(rng.next_u64()) - 0.5,
-            unit_f64(rng.next_u64()) - 0.5,
-            unit_f64(rng.next_u64()) - 0.5,
-        )
-        .normalize();
+        let dir = random_direction(&mut rng);
         let rb = random_rotation(&mut rng);
         // Half the poses near first touch along `dir` (bisection), half anywhere within reach.
         let at = |t: f64| large[j].posed(&(dir * t), &rb, 1.0);

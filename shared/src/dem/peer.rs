@@ -143,10 +143,8 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
             let topo = mesh
                 .topology(None)
                 .map_err(|e| format!("particle {i}: {e}"))?;
-            let smooth = subdivide(&mesh, &topo, abrade);
-            mesh = hull::convex_hull(&smooth.vertices)
-                .map_err(|e| format!("particle {i}, abraded: {e}"))?
-                .mesh;
+            // The shape is the hull of the subdivided surface's vertices (Shape::from_mesh).
+            mesh = subdivide(&mesh, &topo, abrade);
         }
         mesh.name = format!("peer{i}");
         let shape = Shape::from_mesh(&mesh).map_err(|e| e.to_string())?;
