@@ -6,7 +6,7 @@
 # - Yade's own settled state loaded as it is (its volumetric law leaves overlaps of 0.23 mm:
 #   deep contacts under our law, so this measures deep-overlap cost, not a settled bed);
 # - the 2000-particle scene settled the same way (made once, about 40 minutes; BED2000=0 skips);
-# - the 500 bed with every particle turned into its Ab_3 hull (`dem --peer-abrade 3`), settled
+# - the 500 bed with every particle turned into its Ab_3 hull (`dem --abrade 3`), settled
 #   the same way (made once, about an hour; BEDAB3=0 skips);
 # - the 2000-particle scene's first steps (a loose cloud: broad phase and wall checks);
 # - Yade itself on its own settled 500 bed, when `yade` is installed (settled once, 16 minutes).

@@ -8,7 +8,7 @@
 # STEPS steps, and last relaxed with the scene's damping. A stage must outlast the time gravity
 # needs to close the gaps the stiffening opens (overlaps shrink tenfold, ~0.1 mm at the bottom:
 # ~5 ms, 20 000 steps at kn = 1e8); 5 000-step stages left a bed of 73 contacts.
-# ABRADE=K turns every particle into its Ab_K hull first (`dem --peer-abrade`), in place.
+# ABRADE=K turns every particle into its Ab_K hull first (`dem --abrade`), in place.
 # Usage: pipelines/settle-peer.sh N OUT.jsonl [R [STEPS]]   (N = 500: from Yade's settled state)
 # Progress and each stage's figures go to stderr; dem must be on PATH.
 set -euo pipefail
@@ -21,7 +21,7 @@ start=()
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 echo "settle-peer: kn = 5e3 N/m" >&2
-dem --import-peer "$scene" "${start[@]}" --peer-abrade "$abrade" --kn 5e3 --ks 2.5e3 \
+dem --import-peer "$scene" "${start[@]}" --abrade "$abrade" --kn 5e3 --ks 2.5e3 \
   --until-unbalanced 1e-3 --time 3 > "$tmp/s.jsonl"
 for kn in 5e4 5e5 5e6 5e7 1e8; do
   ks=$(awk -v k="$kn" 'BEGIN { printf "%g", k / 2 }')

@@ -405,7 +405,7 @@ fn oblique_impacts_of_irregular_pairs_change_energy_by_the_laws_bound() {
         shapes.push(Shape::from_mesh(&shared::subdiv::subdivide(&p.mesh, &topo, 3)).unwrap());
     }
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-    let mut random_rotation = |rng: &mut rand_chacha::ChaCha8Rng| {
+    let random_rotation = |rng: &mut rand_chacha::ChaCha8Rng| {
         let axis = Vec3::new(rng.random(), rng.random(), rng.random()) - Vec3::repeat(0.5);
         UnitQuaternion::from_scaled_axis(axis * 6.0)
     };
@@ -451,5 +451,106 @@ fn oblique_impacts_of_irregular_pairs_change_energy_by_the_laws_bound() {
             mean.abs() < 5e-3 && worst < 0.03,
             "{name}: mean {mean:e}, worst {worst:e}"
         );
+    }
+}
+
+/// `World::abrade` (the Ab_k of a scene's shapes, `dem --abrade`): every body keeps its place,
+/// its velocities and its source-mesh frame, and only shrinks.
+#[test]
+fn abrading_a_world_keeps_each_body_in_place_inside_its_old_surface() {
+    use shared::hull::convex_hull;
+    use shared::subdiv::subdivide;
+    // A lopsided pyramid (its abraded centroid is not its centroid) and a cube, two bodies of
+    // the pyramid at two sizes, all turned, moving and spinning; two of them touching.
+    let apex = Vec3::new(0.2, 0.3, 1.5);
+    let corners = [
+        Vec3::zeros(),
+        Vec3::x(),
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::y(),
+        apex,
+    ];
+    let mut pyramid = convex_hull(&corners).unwrap().mesh;
+    pyramid.name = "pyramid".into();
+    let mut w = World::new(Material::default(), Vec3::zeros());
+    let shapes = [
+        w.add_shape(Shape::from_mesh(&pyramid).unwrap()),
+        w.add_shape(Shape::from_mesh(&cube(0.5)).unwrap()),
+    ];
+    let turn = |k: f64| UnitQuaternion::from_euler_angles(0.3 * k, -0.7 + k, 1.1 * k);
+    for (k, (&s, scale)) in shapes.iter().cycle().zip([0.02, 0.02, 0.01]).enumerate() {
+        let x = 0.021 * k as f64;
+        let b = w.add_body(s, scale, Vec3::new(x, 0.0, 0.0), turn(k as f64));
+        w.bodies[b].vel = Vec3::new(0.1, -0.2, 0.3 * k as f64);
+        w.bodies[b].ang_mom = w.bodies[b].rot
+            * w.bodies[b]
+                .moments
+                .component_mul(&Vec3::new(1.0, 2.0, -3.0));
+    }
+    w.dt = 1e-9;
+    w.step();
+    assert!(!w.contacts.is_empty(), "the test needs a contact to drop");
+    let before = w.clone();
+    w.abrade(2).unwrap();
+    assert!(w.contacts.is_empty());
+    let kinetic: f64 = w.bodies.iter().map(|b| b.kinetic_energy()).sum();
+    assert_eq!(w.energy.kinetic, kinetic);
+    assert_eq!(w.energy.elastic, 0.0);
+    for (i, (old, new)) in before.bodies.iter().zip(&w.bodies).enumerate() {
+        let (so, sn) = (
+            &before.shapes[old.shape as usize],
+            &w.shapes[new.shape as usize],
+        );
+        assert!(sn.vertices.len() > 3 * so.vertices.len());
+        let ratio = sn.volume / so.volume;
+        assert!(ratio > 0.1 && ratio < 1.0, "body {i}: volume ratio {ratio}");
+        assert_eq!(new.mass, w.material.density * sn.volume * new.scale.powi(3));
+        assert_eq!(new.vel, old.vel);
+        assert!(
+            (new.omega() - old.omega()).norm() <= 1e-12 * old.omega().norm(),
+            "body {i}"
+        );
+        // The world vertices are those of the old surface subdivided where it was.
+        let size = 2.0 * so.radius * old.scale;
+        let mesh = shared::mesh::PolyMesh {
+            vertices: so.vertices.clone(),
+            face_start: so.face_start.clone(),
+            face_verts: so.face_verts.clone(),
+            ..Default::default()
+        };
+        let smooth = subdivide(&mesh, &mesh.topology(None).unwrap(), 2);
+        let expected: Vec<Vec3> = convex_hull(&smooth.vertices)
+            .unwrap()
+            .mesh
+            .vertices
+            .iter()
+            .map(|v| old.pos + old.rot * (v * old.scale))
+            .collect();
+        let oldp = so.posed(&old.pos, &old.rot, old.scale);
+        let newp = sn.posed(&new.pos, &new.rot, new.scale);
+        assert_eq!(newp.vertices.len(), expected.len());
+        for v in &newp.vertices {
+            let near = expected
+                .iter()
+                .map(|e| (e - v).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                near < 1e-12 * size,
+                "body {i}: vertex {v} is {near:e} m from the expected"
+            );
+            for (n, d) in oldp.normals.iter().zip(&oldp.offsets) {
+                assert!(n.dot(v) <= d + 1e-14 * size, "body {i}: vertex {v} outside");
+            }
+        }
+        // The source mesh frame still places the shape: same vertices from either frame.
+        for (vn, e) in sn.vertices.iter().zip(&newp.vertices) {
+            let from_new = sn.centroid_in_mesh + sn.frame_in_mesh * vn;
+            let back = old.rot * (so.frame_in_mesh.inverse() * (from_new - so.centroid_in_mesh));
+            let world = old.pos + back * old.scale;
+            assert!(
+                (world - e).norm() < 1e-12 * size,
+                "body {i}: source frame off"
+            );
+        }
     }
 }

@@ -170,18 +170,8 @@ fn bad_scenes_and_arguments() {
     );
     // Usage errors (clap's exit code 2).
     for (args, needle) in [
-        (&["--peer-abrade", "2", "--steps", "1"][..], "--import-peer"),
-        (
-            &[
-                "--import-peer",
-                "x.txt",
-                "--peer-abrade",
-                "5",
-                "--steps",
-                "1",
-            ][..],
-            "'5' for '--peer-abrade",
-        ),
+        (&["--abrade", "5", "--steps", "1"][..], "'5' for '--abrade"),
+        (&["--abrade", "x", "--steps", "1"][..], "'x' for '--abrade"),
     ] {
         let out = run("dem", args, &scene);
         let err = String::from_utf8_lossy(&out.stderr);
@@ -262,4 +252,26 @@ fn until_unbalanced_stops_early_at_the_ratio() {
         state.contains(&format!("\"step\":{}", last["step"])),
         "state at the last step"
     );
+}
+
+#[test]
+fn abrade_turns_a_scene_into_its_ab_k_hulls() {
+    let scene = repo_file("examples/drop.jsonl");
+    let vertices = |state: &[u8]| -> Vec<usize> {
+        String::from_utf8_lossy(state)
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+            .filter(|v| v["type"] == "shape")
+            .map(|v| v["vertices"].as_array().unwrap().len())
+            .collect()
+    };
+    let sharp = vertices(&ok("dem", &["--steps", "0"], &scene));
+    let smooth = vertices(&ok("dem", &["--abrade", "2", "--steps", "0"], &scene));
+    assert!(!sharp.is_empty() && sharp.len() == smooth.len());
+    for (a, b) in sharp.iter().zip(&smooth) {
+        assert!(*b > 4 * a, "{a} vertices abraded twice gave {b}");
+    }
+    // The abraded scene runs.
+    let state = ok("dem", &["--abrade", "1", "--steps", "200"], &scene);
+    assert!(String::from_utf8_lossy(&state).contains("\"step\":200"));
 }

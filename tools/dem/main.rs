@@ -16,6 +16,7 @@ Examples:
   dem --steps 20000 < examples/drop.jsonl > settled.jsonl
   dem --steps 1000 < settled.jsonl | dem --steps 1000 > a.jsonl   (same bytes as --steps 2000)
   dem --import-peer ../shared/peers/yade/scene_500.txt --steps 0 > scene500.jsonl
+  dem --abrade 2 --steps 0 < examples/drop.jsonl > drop-ab2.jsonl   (the same scene as Ab_2 hulls)
   dem --time 0.3 --vtk out/drop --vtk-every 20000 < examples/drop.jsonl > /dev/null
   dem --until-unbalanced 1e-3 --time 2 < examples/drop.jsonl > settled.jsonl
       then open out/drop/particles.pvd (and contacts.pvd, walls.pvd) in ParaView
@@ -80,11 +81,12 @@ struct Cli {
     /// With --import-peer: a settled state (id x y z qw qx qy qz) to start from
     #[arg(long, requires = "import_peer")]
     peer_state: Option<std::path::PathBuf>,
-    /// With --import-peer: abrade every particle LEVELS times (Catmull-Clark, then the convex
-    /// hull: the paper's Ab_LEVELS of the peer's shapes), in place
-    #[arg(long, value_name = "LEVELS", default_value_t = 0, requires = "import_peer",
+    /// Abrade every shape LEVELS times before running (Catmull-Clark, then the convex hull: the
+    /// paper's Ab_LEVELS of the scene's shapes); bodies stay where they were and only shrink,
+    /// contacts are found afresh, the energy audit restarts and the time step is recomputed
+    #[arg(long, value_name = "LEVELS", default_value_t = 0,
           value_parser = clap::value_parser!(u32).range(0..=4))]
-    peer_abrade: u32,
+    abrade: u32,
 }
 
 #[derive(Serialize)]
@@ -139,13 +141,19 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 ))
             };
             let settled = args.peer_state.as_deref().map(open).transpose()?;
-            peer::read_peer_scene(open(path)?, settled, args.peer_abrade)
+            peer::read_peer_scene(open(path)?, settled)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
         }
         None => state::read_world(cli::stdin())?,
     };
     if world.bodies.is_empty() {
         bail!("the scene has no bodies");
+    }
+    if args.abrade > 0 {
+        world
+            .abrade(args.abrade)
+            .map_err(|e| anyhow::anyhow!("--abrade: {e}"))?;
+        world.dt = 0.0; // smaller bodies: the scene's step may be above their critical one
     }
     for (name, value) in [("--kn", args.kn), ("--ks", args.ks)] {
         if let Some(k) = value {

@@ -13,7 +13,6 @@ use super::wall::Wall;
 use super::world::{Material, World};
 use crate::hull;
 use crate::math::Vec3;
-use crate::subdiv::subdivide;
 use nalgebra::{Quaternion, UnitQuaternion};
 use std::io::BufRead;
 
@@ -22,13 +21,11 @@ fn err(line: usize, msg: impl Into<String>) -> String {
 }
 
 /// A world from a peer scene; `settled` optionally moves the particles to a settled state.
-/// With `abrade` > 0 each particle becomes the convex hull of its Catmull-Clark subdivision
-/// `abrade` times (the paper's Ab_k from this I_P shape), in the same place: the subdivided
-/// surface lies inside the polyhedron, so the abraded particles are smaller and touch less.
+/// Each particle gets its own shape (the peer's particles are all different); `World::abrade`
+/// turns them into the paper's Ab_k of these I_P shapes.
 pub fn read_peer_scene<R: BufRead, S: BufRead>(
     scene: R,
     settled: Option<S>,
-    abrade: u32,
 ) -> Result<World, String> {
     let material = Material {
         wall_friction: 0.5,
@@ -139,13 +136,6 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
     for (i, ((_, verts), (centre, q))) in particles.iter().zip(&poses).enumerate() {
         let h = hull::convex_hull(verts).map_err(|e| format!("particle {i}: {e}"))?;
         let mut mesh = h.mesh;
-        if abrade > 0 {
-            let topo = mesh
-                .topology(None)
-                .map_err(|e| format!("particle {i}: {e}"))?;
-            // The shape is the hull of the subdivided surface's vertices (Shape::from_mesh).
-            mesh = subdivide(&mesh, &topo, abrade);
-        }
         mesh.name = format!("peer{i}");
         let shape = Shape::from_mesh(&mesh).map_err(|e| e.to_string())?;
         // The shape's principal frame sits at centroid_in_mesh, turned by frame_in_mesh, in the
@@ -166,7 +156,7 @@ mod tests {
 
     #[test]
     fn reads_a_scene_and_keeps_world_vertices() {
-        let w = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>, 0).unwrap();
+        let w = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>).unwrap();
         assert_eq!((w.bodies.len(), w.walls.len()), (1, 5));
         let b = &w.bodies[0];
         let posed = w.shapes[0].posed(&b.pos, &b.rot, b.scale);
@@ -182,7 +172,7 @@ mod tests {
     #[test]
     fn a_settled_pose_moves_and_turns() {
         let settled = "0 0.02 0.03 0.04 0 0 0 1\n"; // half a turn about z
-        let w = read_peer_scene(SCENE.as_bytes(), Some(settled.as_bytes()), 0).unwrap();
+        let w = read_peer_scene(SCENE.as_bytes(), Some(settled.as_bytes())).unwrap();
         let b = &w.bodies[0];
         let posed = w.shapes[0].posed(&b.pos, &b.rot, b.scale);
         let v = Vec3::new(0.02 - 0.01, 0.03, 0.04); // (0.01, 0, 0) turned half a turn
@@ -190,41 +180,16 @@ mod tests {
     }
 
     #[test]
-    fn abraded_particles_are_smoother_and_lie_inside_the_polyhedron() {
-        let sharp = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>, 0).unwrap();
-        let b0 = &sharp.bodies[0];
-        let outer = sharp.shapes[0].posed(&b0.pos, &b0.rot, b0.scale);
-        for levels in [1, 2] {
-            let w = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>, levels).unwrap();
-            let (s, b) = (&w.shapes[0], &w.bodies[0]);
-            assert!(s.vertices.len() > sharp.shapes[0].vertices.len() * 3);
-            let ratio = s.volume / sharp.shapes[0].volume;
-            // A tetrahedron shrinks most under Catmull-Clark (level 1 keeps 20 %).
-            assert!(
-                ratio < 1.0 && ratio > 0.1,
-                "level {levels}: volume ratio {ratio}"
-            );
-            // Every abraded vertex is inside the tetrahedron (its four planes).
-            let posed = s.posed(&b.pos, &b.rot, b.scale);
-            for v in &posed.vertices {
-                for (n, d) in outer.normals.iter().zip(&outer.offsets) {
-                    assert!(n.dot(v) <= d + 1e-15, "level {levels}: vertex {v} outside");
-                }
-            }
-        }
-    }
-
-    #[test]
     fn bad_peer_input() {
         assert!(
-            read_peer_scene("0 4 0.01 0 0 0 4 1 2 3\n".as_bytes(), None::<&[u8]>, 0)
+            read_peer_scene("0 4 0.01 0 0 0 4 1 2 3\n".as_bytes(), None::<&[u8]>)
                 .unwrap_err()
                 .contains("line 1")
         );
-        assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>, 0)
+        assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>)
             .unwrap_err()
             .contains("box needs"));
-        assert!(read_peer_scene("# nothing\n".as_bytes(), None::<&[u8]>, 0)
+        assert!(read_peer_scene("# nothing\n".as_bytes(), None::<&[u8]>)
             .unwrap_err()
             .contains("no 'box"));
     }

@@ -10,6 +10,7 @@ use crate::hull::{self, HullError};
 use crate::mass::MassProps;
 use crate::math::{Mat3, Vec3};
 use crate::mesh::PolyMesh;
+use crate::subdiv::subdivide;
 use nalgebra::{SymmetricEigen, UnitQuaternion};
 use thiserror::Error;
 
@@ -171,6 +172,30 @@ impl Shape {
             frame_in_mesh: frame,
             climb,
         })
+    }
+
+    /// The paper's abrasion of this shape (Ab_`levels` from it): the convex hull of its surface
+    /// subdivided `levels` times by Catmull-Clark, which lies inside it. The new shape has its
+    /// own principal frame; also returned is where that frame sits in this shape's frame
+    /// (centroid and rotation), to keep a body in place. `centroid_in_mesh` and
+    /// `frame_in_mesh` still refer to the source mesh.
+    pub fn abraded(&self, levels: u32) -> Result<(Shape, Vec3, UnitQuaternion<f64>), String> {
+        let mesh = PolyMesh {
+            name: self.name.clone(),
+            vertices: self.vertices.clone(),
+            face_start: self.face_start.clone(),
+            face_verts: self.face_verts.clone(),
+            ..Default::default()
+        };
+        let topo = mesh
+            .topology(None)
+            .map_err(|e| format!("shape '{}': {e}", self.name))?;
+        let mut out =
+            Shape::from_mesh(&subdivide(&mesh, &topo, levels)).map_err(|e| e.to_string())?;
+        let (offset, turn) = (out.centroid_in_mesh, out.frame_in_mesh);
+        out.centroid_in_mesh = self.centroid_in_mesh + self.frame_in_mesh * offset;
+        out.frame_in_mesh = self.frame_in_mesh * turn;
+        Ok((out, offset, turn))
     }
 
     /// Number of faces.

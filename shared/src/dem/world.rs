@@ -292,6 +292,45 @@ impl World {
         self.bodies.len() - 1
     }
 
+    /// Abrades every shape `levels` times in place ([`Shape::abraded`]): each body keeps where
+    /// its material was (the abraded surface lies inside the old one, so bodies only shrink),
+    /// its velocity and its angular velocity, with the new mass and moments. Contacts are
+    /// dropped (their depths and springs belonged to the old surfaces; the next step finds the
+    /// new ones) and the energy audit starts again from the new kinetic energy.
+    pub fn abrade(&mut self, levels: u32) -> Result<(), String> {
+        if levels == 0 {
+            return Ok(());
+        }
+        let abraded = filter_map_maybe_par(&self.shapes, true, |s| Some(s.abraded(levels)));
+        let mut moved = Vec::with_capacity(abraded.len());
+        for (s, a) in self.shapes.iter_mut().zip(abraded) {
+            let (shape, offset, turn) = a?;
+            *s = shape;
+            moved.push((offset, turn));
+        }
+        let rho = self.material.density;
+        for b in &mut self.bodies {
+            let omega = b.omega();
+            let s = &self.shapes[b.shape as usize];
+            let (offset, turn) = moved[b.shape as usize];
+            b.pos += b.rot * (offset * b.scale);
+            b.rot *= turn;
+            b.mass = rho * s.volume * b.scale.powi(3);
+            b.moments = s.moments * (rho * b.scale.powi(5));
+            let body_omega = b.rot.inverse_transform_vector(&omega);
+            b.ang_mom = b
+                .rot
+                .transform_vector(&body_omega.component_mul(&b.moments));
+        }
+        self.contacts.clear();
+        self.separations.clear();
+        self.energy = Energy {
+            kinetic: self.bodies.iter().map(Body::kinetic_energy).sum(),
+            ..Energy::default()
+        };
+        Ok(())
+    }
+
     /// Replaces the contact stiffnesses, carrying the contacts over at the same depths and
     /// shear displacements: forces scale by the ratios, and each contact's stored energy starts
     /// again from `Fn^2 / 2kn` (what a new contact gets). The work a contact has stored under
