@@ -1,44 +1,51 @@
 #!/usr/bin/env bash
-# DEM engine throughput, side by side in one run, with 1 and 2 threads:
-# - the peer benchmark's 500-particle bed settled under our own law at the paper's stiffness
-#   (kn = 1e8 N/m; made once by pipelines/settle-peer.sh from Yade's settled state, about
-#   10 minutes, kept in out/bench/);
+# DEM engine throughput, side by side in one run, with 1 and 2 threads, on the peer benchmark's
+# scenes (../shared/peers/yade), each bed made once by pipelines/settle-peer.sh and kept in
+# out/bench/ (the first run takes about two hours; the beds' logs are kept beside them):
+# - dense beds at rest, 5-6 contacts per particle (the issue's benchmark): 500 (from Yade's
+#   settled state), 2000 and 5000 particles (from the falling clouds), settled with a soft
+#   kn = 5e3 N/m, and the same beds as Ab_3 hulls (`dem --abrade 3`, settled again). A step's
+#   cost depends on the contacts, not on kn: timed at the kn they settled with.
+#   BIG=0 skips the 2000 and 5000 beds, AB3=0 the Ab_3 beds;
+# - the 500 bed stiffened to the paper's kn = 1e8 N/m (fewer, thinner contacts), and as Ab_3;
 # - Yade's own settled state loaded as it is (its volumetric law leaves overlaps of 0.23 mm:
-#   deep contacts under our law, so this measures deep-overlap cost, not a settled bed);
-# - the 2000-particle scene settled the same way (made once, about 40 minutes; BED2000=0 skips);
-# - the 500 bed with every particle turned into its Ab_3 hull (`dem --abrade 3`), settled
-#   the same way (made once, about an hour; BEDAB3=0 skips);
+#   deep contacts under our law, so this measures deep-overlap cost);
 # - the 2000-particle scene's first steps (a loose cloud: broad phase and wall checks);
 # - Yade itself on its own settled 500 bed, when `yade` is installed (settled once, 16 minutes).
-# Each of our rows also prints where the step time goes and the peak resident memory.
-# Contacts per particle are printed with each row. Results: docs/bench.md.
-# Usage: pipelines/bench-dem.sh [STEPS]   (default 200; dem must be on PATH)
+# Each of our rows also prints where the step time goes and the peak resident memory, and the
+# contacts per particle as the peer counts them. Results: docs/bench.md.
+# Usage: pipelines/bench-dem.sh [STEPS]   (default 1000; dem must be on PATH)
 set -euo pipefail
-steps=${1:-200}
+steps=${1:-1000}
 peers=${PEERS:-../shared/peers/yade}
 out=${OUT:-out}/bench
+settle=$(dirname "$0")/settle-peer.sh
 if [ ! -f "$peers/scene_500.txt" ]; then
   echo "bench-dem: no peer scenes in $peers (set PEERS=DIR); skipped"
   exit 0
 fi
 mkdir -p "$out"
-bed=$out/bed500.jsonl
-if [ ! -f "$bed" ]; then
-  echo "bench-dem: settling the 500 bed at kn = 1e8 N/m into $bed (once, ~10 min)"
-  PEERS=$peers "$(dirname "$0")/settle-peer.sh" 500 "$bed.tmp" 2>"$out/settle.log"
-  mv "$bed.tmp" "$bed"
-fi
-bed2000=$out/bed2000.jsonl
-if [ ! -f "$bed2000" ] && [ "${BED2000:-1}" = 1 ]; then
-  echo "bench-dem: settling the 2000 scene at kn = 1e8 N/m into $bed2000 (once, ~40 min; BED2000=0 skips)"
-  PEERS=$peers "$(dirname "$0")/settle-peer.sh" 2000 "$bed2000.tmp" 2>"$out/settle2000.log"
-  mv "$bed2000.tmp" "$bed2000"
-fi
-bedab3=$out/ab3bed500.jsonl
-if [ ! -f "$bedab3" ] && [ "${BEDAB3:-1}" = 1 ]; then
-  echo "bench-dem: settling the 500 bed as Ab_3 hulls at kn = 1e8 N/m into $bedab3 (once, about an hour; BEDAB3=0 skips)"
-  PEERS=$peers ABRADE=3 "$(dirname "$0")/settle-peer.sh" 500 "$bedab3.tmp" 2>"$out/settle-ab3.log"
-  mv "$bedab3.tmp" "$bedab3"
+make_bed() {  # bed file, what it is, settle-peer.sh arguments...
+  local bed=$1 what=$2; shift 2
+  if [ ! -f "$bed" ]; then
+    echo "bench-dem: making $bed ($what; once)"
+    PEERS=$peers "$settle" "$@" 2>"${bed%.jsonl}.log"
+  fi
+}
+sizes=(500)
+[ "${BIG:-1}" = 1 ] && sizes+=(2000 5000)
+for n in "${sizes[@]}"; do
+  make_bed "$out/soft$n.jsonl" "$n particles settled at kn = 5e3" soft "$n" "$out/soft$n.jsonl"
+  if [ "${AB3:-1}" = 1 ]; then
+    make_bed "$out/ab3soft$n.jsonl" "the same as Ab_3 hulls" abrade 3 "$out/soft$n.jsonl" \
+      "$out/ab3soft$n.jsonl"
+  fi
+done
+make_bed "$out/stiff500.jsonl" "the 500 bed at kn = 1e8" stiffen "$out/soft500.jsonl" \
+  "$out/stiff500.jsonl"
+if [ "${AB3:-1}" = 1 ]; then
+  make_bed "$out/ab3stiff500.jsonl" "its Ab_3 bed at kn = 1e8" stiffen "$out/ab3soft500.jsonl" \
+    "$out/ab3stiff500.jsonl"
 fi
 # Yade on the same machine in the same run, when it is installed: its own settled 500 bed
 # (the peer README's recipe, about 16 minutes once), then the same timed steps from it.
@@ -56,19 +63,22 @@ row() {  # label, threads, dem arguments... (the scene on stdin)
   printf '%-40s %s thread(s)  %s\n' "$label" "$th" "$(grep 'particle-steps/s' <<<"$log")"
   grep -E 'step time|peak resident' <<<"$log" | sed 's/^/      /'
 }
-for th in 1 2; do
-  row "500 bed settled at kn = 1e8 (ours)" "$th" --steps "$steps" < "$bed"
+for n in "${sizes[@]}"; do
+  for th in 1 2; do
+    row "$n bed at rest, kn = 5e3 (ours)" "$th" --steps "$steps" < "$out/soft$n.jsonl"
+  done
+  if [ -f "$out/ab3soft$n.jsonl" ]; then
+    for th in 1 2; do
+      row "$n bed of Ab_3 hulls, kn = 5e3 (ours)" "$th" --steps "$steps" < "$out/ab3soft$n.jsonl"
+    done
+  fi
 done
-if [ -f "$bed2000" ]; then
+for bed in "stiff500:500 bed at kn = 1e8 (ours)" "ab3stiff500:500 Ab_3 bed at kn = 1e8 (ours)"; do
+  [ -f "$out/${bed%%:*}.jsonl" ] || continue
   for th in 1 2; do
-    row "2000 bed settled at kn = 1e8 (ours)" "$th" --steps "$steps" < "$bed2000"
+    row "${bed#*:}" "$th" --steps "$steps" < "$out/${bed%%:*}.jsonl"
   done
-fi
-if [ -f "$bedab3" ]; then
-  for th in 1 2; do
-    row "500 bed of Ab_3 hulls at kn = 1e8 (ours)" "$th" --steps "$steps" < "$bedab3"
-  done
-fi
+done
 for th in 1 2; do
   row "500 bed, Yade's state (deep overlaps)" "$th" --import-peer "$peers/scene_500.txt" \
     --peer-state "$peers/settled_500_state.txt" --steps "$steps"

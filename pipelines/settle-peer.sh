@@ -1,35 +1,62 @@
 #!/usr/bin/env bash
-# Settles a peer scene (../shared/peers/yade) under our own contact law, for the engine
-# benchmark. The peer's settled state carries Yade's overlaps (median 0.23 mm): with the
-# paper's kn = 1e8 N/m they would blow the bed apart. So the bed is first relaxed with a soft
-# kn = 5e3 N/m (about the stiffness Yade's volumetric law has at those overlaps) until the
-# unbalanced-force ratio is below 1e-3, then stiffened tenfold per stage up to kn = 1e8 N/m
-# (ks = kn / 2) with local damping DAMP (default 0.7), each stage until the ratio is below R or
-# STEPS steps, and last relaxed with the scene's damping. A stage must outlast the time gravity
-# needs to close the gaps the stiffening opens (overlaps shrink tenfold, ~0.1 mm at the bottom:
-# ~5 ms, 20 000 steps at kn = 1e8); 5 000-step stages left a bed of 73 contacts.
-# ABRADE=K turns every particle into its Ab_K hull first (`dem --abrade`), in place.
-# Usage: pipelines/settle-peer.sh N OUT.jsonl [R [STEPS]]   (N = 500: from Yade's settled state)
+# Settles the peer benchmark's scenes (../shared/peers/yade) under our own contact law, for the
+# engine benchmark (pipelines/bench-dem.sh). Three steps, each a mode:
+#
+#   settle-peer.sh soft N OUT.jsonl
+#       The N-particle scene (500: from Yade's settled state; 2000, 5000: from the falling
+#       cloud) settled with a soft kn = 5e3 N/m (about the stiffness of Yade's volumetric law at
+#       its overlaps) at 0.5 x the critical time step, until the unbalanced-force ratio is below
+#       1e-3: a dense bed at rest, 5-6 contacts per particle as the peer counts them.
+#   settle-peer.sh abrade K IN.jsonl OUT.jsonl
+#       Every particle of a settled bed turned into its Ab_K hull in place (`dem --abrade K`),
+#       then settled again the same way (the abraded particles are smaller: the bed loosens).
+#   settle-peer.sh stiffen IN.jsonl OUT.jsonl [R [STEPS]]
+#       A soft bed stiffened tenfold per stage up to the paper's kn = 1e8 N/m (ks = kn / 2),
+#       local damping DAMP (default 0.7), each stage until the ratio is below R (1e-2) or STEPS
+#       (20 000) steps, then relaxed with the scene's damping 0.3 the same way. A stiffening
+#       shrinks the overlaps tenfold and opens gaps that gravity closes in ~5 ms (20 000 steps
+#       at kn = 1e8); even so the bed is still compacting at the end (0.3 ratio, docs/bench.md):
+#       settling at the paper's stiffness takes simulated time that costs hours.
+#
 # Progress and each stage's figures go to stderr; dem must be on PATH.
 set -euo pipefail
-n=$1 out=$2 ratio=${3:-1e-2} steps=${4:-20000} damp=${DAMP:-0.7} abrade=${ABRADE:-0}
+usage() { sed -n 's/^#   settle-peer.sh/usage: settle-peer.sh/p' "$0" >&2; exit 2; }
+mode=${1:-}
+[ $# -ge 1 ] && shift
 peers=${PEERS:-../shared/peers/yade}
-scene=$peers/scene_$n.txt
-[ -f "$scene" ] || { echo "settle-peer: no $scene (set PEERS=DIR)" >&2; exit 1; }
-start=()
-[ -f "$peers/settled_${n}_state.txt" ] && start=(--peer-state "$peers/settled_${n}_state.txt")
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-echo "settle-peer: kn = 5e3 N/m" >&2
-dem --import-peer "$scene" "${start[@]}" --abrade "$abrade" --kn 5e3 --ks 2.5e3 \
-  --until-unbalanced 1e-3 --time 3 > "$tmp/s.jsonl"
-for kn in 5e4 5e5 5e6 5e7 1e8; do
-  ks=$(awk -v k="$kn" 'BEGIN { printf "%g", k / 2 }')
-  echo "settle-peer: kn = $kn N/m, damping $damp" >&2
-  dem --kn "$kn" --ks "$ks" --damping "$damp" --until-unbalanced "$ratio" --steps "$steps" \
-    < "$tmp/s.jsonl" > "$tmp/t.jsonl"
-  mv "$tmp/t.jsonl" "$tmp/s.jsonl"
-done
-echo "settle-peer: relaxing with the scene's damping" >&2
-dem --damping 0.3 --until-unbalanced "$ratio" --steps "$steps" < "$tmp/s.jsonl" > "$tmp/t.jsonl"
-mv "$tmp/t.jsonl" "$out"
+soft=(--kn 5e3 --ks 2.5e3 --safety 0.5 --until-unbalanced 1e-3)
+case $mode in
+  soft)
+    [ $# -eq 2 ] || usage
+    n=$1 out=$2
+    scene=$peers/scene_$n.txt
+    [ -f "$scene" ] || { echo "settle-peer: no $scene (set PEERS=DIR)" >&2; exit 1; }
+    start=()
+    [ -f "$peers/settled_${n}_state.txt" ] && start=(--peer-state "$peers/settled_${n}_state.txt")
+    echo "settle-peer: $n particles at kn = 5e3 N/m" >&2
+    dem --import-peer "$scene" "${start[@]}" "${soft[@]}" --time 4 > "$out.tmp"
+    ;;
+  abrade)
+    [ $# -eq 3 ] || usage
+    levels=$1 in=$2 out=$3
+    echo "settle-peer: $in as Ab_$levels hulls, settling again at kn = 5e3 N/m" >&2
+    dem --abrade "$levels" "${soft[@]}" --time 2 < "$in" > "$out.tmp"
+    ;;
+  stiffen)
+    [ $# -ge 2 ] && [ $# -le 4 ] || usage
+    in=$1 out=$2 ratio=${3:-1e-2} steps=${4:-20000} damp=${DAMP:-0.7}
+    cp "$in" "$out.tmp"
+    for kn in 5e4 5e5 5e6 5e7 1e8; do
+      ks=$(awk -v k="$kn" 'BEGIN { printf "%g", k / 2 }')
+      echo "settle-peer: kn = $kn N/m, damping $damp" >&2
+      dem --kn "$kn" --ks "$ks" --damping "$damp" --until-unbalanced "$ratio" --steps "$steps" \
+        < "$out.tmp" > "$out.next"
+      mv "$out.next" "$out.tmp"
+    done
+    echo "settle-peer: relaxing with the scene's damping" >&2
+    dem --damping 0.3 --until-unbalanced "$ratio" --steps "$steps" < "$out.tmp" > "$out.next"
+    mv "$out.next" "$out.tmp"
+    ;;
+  *) usage ;;
+esac
+mv "$out.tmp" "$out"

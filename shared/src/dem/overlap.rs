@@ -121,11 +121,14 @@ struct Scratch {
     /// A's and B's vertices along the slab's axis.
     side_a: Side,
     side_b: Side,
-    /// Faces of A and B that meet the slab, and those of them whose planes cut the box.
+    /// Faces of A and B that meet the slab, their planes (world), and which of those planes
+    /// (positions in the lists) cut the box.
     faces_a: Vec<u32>,
     faces_b: Vec<u32>,
-    planes_a: Vec<u32>,
-    planes_b: Vec<u32>,
+    planes_a: Vec<(Vec3, f64)>,
+    planes_b: Vec<(Vec3, f64)>,
+    cuts_a: Vec<u32>,
+    cuts_b: Vec<u32>,
 }
 
 /// One body's vertices along the slab's axis, facing the other body: heights `sign n . v`
@@ -297,15 +300,17 @@ fn coplanar(n1: &Vec3, d1: f64, n2: &Vec3, d2: f64, size: f64) -> bool {
 }
 
 #[allow(clippy::too_many_arguments)]
-/// Clips the `faces` of `x` (a posed `sx`) to the bounds and to `y`'s `planes`, adding the
-/// pieces. For B (`x_is_b`), a face on one of A's `coplanar_with` planes is left to A.
+/// Clips the `faces` of `x` (a posed `sx`; their planes `x_planes`, in the same order) to the
+/// bounds and to the planes `cuts` of `y_planes`, adding the pieces. For B (`x_is_b`), a face
+/// on one of A's planes `coplanar_with` is left to A.
 fn clip_faces(
     sx: &Shape,
     x: &Posed,
     faces: &[u32],
-    y: &Posed,
-    planes: &[u32],
-    coplanar_with: &[u32],
+    x_planes: &[(Vec3, f64)],
+    y_planes: &[(Vec3, f64)],
+    cuts: &[u32],
+    coplanar_with: &[(Vec3, f64)],
     bounds: &[(Vec3, f64); 8],
     x_is_b: bool,
     acc: &mut Acc,
@@ -321,18 +326,17 @@ fn clip_faces(
     // Which planes each vertex lies outside of, computed when a face first needs the vertex:
     // a face outside one plane with all its vertices is culled, and a plane that none of its
     // vertices lies outside of cannot clip it.
-    let coded = planes.len().min(CODED);
+    let plane = |j: u32| &y_planes[j as usize];
+    let coded = cuts.len().min(CODED);
     codes.clear();
     codes.resize(x.vertices.len(), UNCODED);
-    'faces: for &f in faces {
+    'faces: for (&f, (n, xd)) in faces.iter().zip(x_planes) {
         let f = f as usize;
         let idx = sx.face(f);
-        let n = &x.normals[f];
         if x_is_b {
             // B's face lying on one of A's faces, facing the same way: A's piece covers it.
-            for &j in coplanar_with {
-                let j = j as usize;
-                if coplanar(&y.normals[j], y.offsets[j], n, x.offsets[f], size) {
+            for (m, d) in coplanar_with {
+                if coplanar(m, *d, n, *xd, size) {
                     continue 'faces;
                 }
             }
@@ -349,9 +353,12 @@ fn clip_faces(
                     .enumerate()
                     .map(out)
                     .sum::<u64>()
-                    | planes[..coded]
+                    | cuts[..coded]
                         .iter()
-                        .map(|&j| (&y.normals[j as usize], y.offsets[j as usize]))
+                        .map(|&j| {
+                            let (m, d) = plane(j);
+                            (m, *d)
+                        })
                         .enumerate()
                         .map(|(k, p)| out((k + 8, p)))
                         .sum::<u64>();
@@ -362,14 +369,14 @@ fn clip_faces(
         // A's face on one of B's planes stays whole against it (B's face there is skipped
         // above, or that side of the overlap would have no boundary at all).
         let keeps = |j: u32| {
-            let j = j as usize;
-            !x_is_b && coplanar(&y.normals[j], y.offsets[j], n, x.offsets[f], size)
+            let (m, d) = plane(j);
+            !x_is_b && coplanar(m, *d, n, *xd, size)
         };
         let mut bits = all;
         while bits != 0 {
             let k = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            if k < 8 || !keeps(planes[k - 8]) {
+            if k < 8 || !keeps(cuts[k - 8]) {
                 continue 'faces; // wholly outside one plane
             }
         }
@@ -387,13 +394,13 @@ fn clip_faces(
             fhi = fhi.sup(p);
         }
         let coded_cuts = (0..coded).filter(|&k| any & (1 << (k + 8)) != 0);
-        for k in coded_cuts.chain(coded..planes.len()) {
-            let j = planes[k];
-            let (m, d) = (&y.normals[j as usize], y.offsets[j as usize]);
-            if box_excess(m, d, &flo, &fhi) <= 0.0 || keeps(j) {
+        for k in coded_cuts.chain(coded..cuts.len()) {
+            let j = cuts[k];
+            let (m, d) = plane(j);
+            if box_excess(m, *d, &flo, &fhi) <= 0.0 || keeps(j) {
                 continue;
             }
-            if !clip(poly, tmp, dist, m, d) {
+            if !clip(poly, tmp, dist, m, *d) {
                 continue 'faces;
             }
         }
@@ -490,6 +497,8 @@ pub(crate) fn overlap_parts(
             faces_b,
             planes_a,
             planes_b,
+            cuts_a,
+            cuts_b,
         } = sc;
         let hi_n = side_a.climb_to_top(sa, a, &n, 1.0);
         let lo_n = -side_b.climb_to_top(sb, b, &n, -1.0);
@@ -510,20 +519,27 @@ pub(crate) fn overlap_parts(
         side_b.reach_down_to(sb, b, &n, -1.0, -hi_n);
         faces_around(sa, &side_a.reach, faces_a);
         faces_around(sb, &side_b.reach, faces_b);
-        let cuts = |p: &Posed, faces: &[u32], out: &mut Vec<u32>| {
+        let gather = |s: &Shape, p: &Posed, faces: &[u32], out: &mut Vec<(Vec3, f64)>| {
             out.clear();
-            out.extend(faces.iter().copied().filter(|&j| {
-                box_excess(&p.normals[j as usize], p.offsets[j as usize], &lo, &hi) > 0.0
+            out.extend(faces.iter().map(|&f| p.plane(s, f as usize)));
+        };
+        gather(sa, a, faces_a, planes_a);
+        gather(sb, b, faces_b, planes_b);
+        let cuts = |planes: &[(Vec3, f64)], out: &mut Vec<u32>| {
+            out.clear();
+            out.extend((0..planes.len() as u32).filter(|&k| {
+                box_excess(&planes[k as usize].0, planes[k as usize].1, &lo, &hi) > 0.0
             }));
         };
-        cuts(a, faces_a, planes_a);
-        cuts(b, faces_b, planes_b);
+        cuts(planes_a, cuts_a);
+        cuts(planes_b, cuts_b);
         clip_faces(
             sa,
             a,
             faces_a,
-            b,
+            planes_a,
             planes_b,
+            cuts_b,
             &[],
             &bounds,
             false,
@@ -532,7 +548,8 @@ pub(crate) fn overlap_parts(
             clip,
         );
         clip_faces(
-            sb, b, faces_b, a, planes_a, faces_a, &bounds, true, &mut acc, size, clip,
+            sb, b, faces_b, planes_b, planes_a, cuts_a, planes_a, &bounds, true, &mut acc, size,
+            clip,
         );
         Some(())
     })?;

@@ -11,7 +11,7 @@ use crate::mass::MassProps;
 use crate::math::{Mat3, Vec3};
 use crate::mesh::PolyMesh;
 use crate::subdiv::subdivide;
-use nalgebra::{SymmetricEigen, UnitQuaternion};
+use nalgebra::{Rotation3, SymmetricEigen, UnitQuaternion};
 use thiserror::Error;
 
 /// Why a mesh gives no usable shape.
@@ -223,19 +223,48 @@ impl Shape {
 
     /// [`Shape::posed`] into `out`, reusing its buffers (same values).
     pub fn pose_into(&self, pos: &Vec3, rot: &UnitQuaternion<f64>, scale: f64, out: &mut Posed) {
+        self.pose_with(pos, rot, scale, out, true);
+    }
+
+    /// [`Shape::pose_into`] for the contact search: a large shape ([`Shape::climb`]) leaves its
+    /// face planes to [`Posed::plane`], since a contact needs only the few near it (an Ab_3
+    /// hull has about 1500; posing them all was a fifth of a step).
+    pub fn pose_for_contacts(
+        &self,
+        pos: &Vec3,
+        rot: &UnitQuaternion<f64>,
+        scale: f64,
+        out: &mut Posed,
+    ) {
+        self.pose_with(pos, rot, scale, out, self.climb.is_none());
+    }
+
+    fn pose_with(
+        &self,
+        pos: &Vec3,
+        rot: &UnitQuaternion<f64>,
+        scale: f64,
+        out: &mut Posed,
+        planes: bool,
+    ) {
         let r = rot.to_rotation_matrix();
+        out.rot = r;
+        out.pos = *pos;
+        out.scale = scale;
         out.vertices.clear();
         out.vertices
             .extend(self.vertices.iter().map(|v| pos + r * (v * scale)));
         out.normals.clear();
-        out.normals.extend(self.normals.iter().map(|n| r * n));
         out.offsets.clear();
-        out.offsets.extend(
-            self.offsets
-                .iter()
-                .zip(&out.normals)
-                .map(|(d, n)| d * scale + n.dot(pos)),
-        );
+        if planes {
+            out.normals.extend(self.normals.iter().map(|n| out.rot * n));
+            out.offsets.extend(
+                self.offsets
+                    .iter()
+                    .zip(&out.normals)
+                    .map(|(d, n)| plane_offset(*d, n, pos, scale)),
+            );
+        }
         let (lo, hi) = crate::math::bounding_box(&out.vertices).expect("a shape has vertices");
         out.lo = lo;
         out.hi = hi;
@@ -297,6 +326,7 @@ pub fn principal_axes(inertia: &Mat3) -> (Mat3, Vec3) {
 }
 
 /// A shape placed in the world: vertices, face planes and bounding box in world coordinates.
+/// The planes may be left out ([`Shape::pose_for_contacts`]): [`Posed::plane`] has them all.
 #[derive(Clone, Debug, Default)]
 pub struct Posed {
     pub vertices: Vec<Vec3>,
@@ -304,6 +334,29 @@ pub struct Posed {
     pub offsets: Vec<f64>,
     pub lo: Vec3,
     pub hi: Vec3,
+    /// The pose: world = pos + rot (scale x).
+    pub rot: Rotation3<f64>,
+    pub pos: Vec3,
+    pub scale: f64,
+}
+
+impl Posed {
+    /// World normal and offset of face `f` of `s` (the shape this is a pose of): the posed
+    /// plane, or the same numbers computed now when the planes were left out.
+    pub fn plane(&self, s: &Shape, f: usize) -> (Vec3, f64) {
+        match (self.normals.get(f), self.offsets.get(f)) {
+            (Some(n), Some(d)) => (*n, *d),
+            _ => {
+                let n = self.rot * s.normals[f];
+                (n, plane_offset(s.offsets[f], &n, &self.pos, self.scale))
+            }
+        }
+    }
+}
+
+/// The world offset of a face plane of offset `d` (shape frame) and world normal `n`.
+fn plane_offset(d: f64, n: &Vec3, pos: &Vec3, scale: f64) -> f64 {
+    d * scale + n.dot(pos)
 }
 
 #[cfg(test)]

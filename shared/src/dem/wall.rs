@@ -371,6 +371,7 @@ fn facet_overlap<const K: usize>(
         offsets,
         lo,
         hi,
+        ..Default::default() // planes given: no pose needed
     };
     let (o, cap) = overlap_parts(prism(K), &posed, sb, b, n)?;
     Some((o.volume, o.centroid, cap))

@@ -377,7 +377,7 @@ impl World {
     fn pose_all(&self, posed: &mut Vec<Posed>) {
         posed.resize_with(self.bodies.len(), Posed::default);
         let pose = |(b, p): (&Body, &mut Posed)| {
-            self.shapes[b.shape as usize].pose_into(&b.pos, &b.rot, b.scale, p)
+            self.shapes[b.shape as usize].pose_for_contacts(&b.pos, &b.rot, b.scale, p)
         };
         if self.bodies.len() >= PARALLEL_MIN_BODIES {
             self.bodies
