@@ -4,7 +4,7 @@
 
 use nalgebra::UnitQuaternion;
 use rand::{RngCore, SeedableRng};
-use shared::dem::overlap::{overlap, overlap_along, overlap_half_space};
+use shared::dem::overlap::{gap_axis, overlap, overlap_along, overlap_half_space};
 use shared::dem::shape::{Posed, Shape};
 use shared::math::{unit_f64, Vec3};
 use shared::mesh::cube;
@@ -341,7 +341,8 @@ fn grazing_vertex_contacts_have_the_depth_of_their_penetration() {
 /// probes instead of scanning every vertex. The vertex sets are the same, so the overlap must be
 /// the same, bit for bit, as with the scan: checked on Ab_2 and Ab_3 hulls (about 200 and 770
 /// vertices) and on a flat ellipsoid's hull (nearly coplanar vertices), from grazing to deep
-/// overlaps and separated poses, culled along several axes.
+/// overlaps and separated poses, culled along several axes. GJK's gap proofs climb too: they
+/// must hold for every pose they are given for, and be found as often as with scanned supports.
 #[test]
 fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
     let mut large = Vec::new();
@@ -378,6 +379,7 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
         .collect();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     let (mut touching, mut apart) = (0, 0);
+    let mut proofs = [0usize; 4];
     for trial in 0..800 {
         let (i, j) = (trial % large.len(), (trial / large.len()) % large.len());
         let a = large[i].posed(&Vec3::zeros(), &random_rotation(&mut rng), 1.0);
@@ -409,6 +411,20 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
             let climbed = overlap_along(&large[i], &a, &large[j], &b, &axis);
             let scanned = overlap_along(&scanning[i], &a, &scanning[j], &b, &axis);
             assert_eq!(climbed, scanned, "trial {trial}, axis {axis:?}");
+            // The gap proof with climbed supports: only ever for bodies apart (checked by a
+            // full scan along the direction it hands back), and as often as with scans.
+            let proof = gap_axis(&large[i], &a, &large[j], &b, &axis);
+            if let Some(d) = proof {
+                let top_a = a.vertices.iter().map(|v| d.dot(v)).fold(f64::MIN, f64::max);
+                let low_b = b.vertices.iter().map(|v| d.dot(v)).fold(f64::MAX, f64::min);
+                assert!(
+                    top_a < low_b,
+                    "trial {trial}: gap proof for touching bodies"
+                );
+                assert!(scanned.is_none());
+            }
+            let scan_proof = gap_axis(&scanning[i], &a, &scanning[j], &b, &axis);
+            proofs[usize::from(proof.is_some()) * 2 + usize::from(scan_proof.is_some())] += 1;
             if climbed.is_some() {
                 touching += 1;
             } else {
@@ -419,6 +435,12 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
     assert!(
         touching > 800 && apart > 200,
         "{touching} touching, {apart} apart"
+    );
+    // [neither, scan only, climb only, both]
+    println!("gap proofs: {proofs:?}");
+    assert!(
+        proofs[3] > 150 && proofs[1] + proofs[2] <= proofs[3] / 50,
+        "{proofs:?}"
     );
 }
 

@@ -9,20 +9,68 @@
 //! only means "not shown separated" (overlapping, touching within the margin, or the iteration
 //! gave up), and the caller then does the exact overlap.
 
+use super::shape::Climb;
 use crate::math::Vec3;
 
-/// The vertex of `points` farthest along `d`.
-fn support(points: &[Vec3], d: &Vec3) -> Vec3 {
-    let mut best = points[0];
-    let mut reach = d.dot(&best);
-    for p in &points[1..] {
-        let h = d.dot(p);
-        if h > reach {
-            reach = h;
-            best = *p;
+/// A convex point set for GJK: its points, and for a large hull the vertex graph to find a
+/// support by climbing (see [`Climb`]) instead of scanning every point.
+#[derive(Clone, Copy)]
+pub struct Points<'a> {
+    pub points: &'a [Vec3],
+    pub climb: Option<&'a Climb>,
+}
+
+impl Points<'_> {
+    /// The index of a point farthest along `d`; `hint` is where a climb starts (the last
+    /// support: GJK's directions turn little) and is moved to the answer. On a convex hull a
+    /// vertex no neighbour of which is higher is the highest, up to round-off: a climb can
+    /// stop below the true support by ~1e-14 of the coordinates, far inside GJK's margin.
+    fn support(&self, d: &Vec3, hint: &mut Option<usize>) -> usize {
+        let points = self.points;
+        let Some(climb) = self.climb else {
+            let mut best = 0;
+            let mut reach = d.dot(&points[0]);
+            for (i, p) in points.iter().enumerate().skip(1) {
+                let h = d.dot(p);
+                if h > reach {
+                    reach = h;
+                    best = i;
+                }
+            }
+            return best;
+        };
+        let height = |i: usize| d.dot(&points[i]);
+        let mut at = hint.unwrap_or_else(|| {
+            climb
+                .probes
+                .iter()
+                .map(|&i| i as usize)
+                .fold(climb.probes[0] as usize, |b, i| {
+                    if height(i) > height(b) {
+                        i
+                    } else {
+                        b
+                    }
+                })
+        });
+        let mut top = height(at);
+        loop {
+            let mut next = at;
+            for &n in climb.neighbors(at) {
+                let h = height(n as usize);
+                if h > top {
+                    top = h;
+                    next = n as usize;
+                }
+            }
+            if next == at {
+                break;
+            }
+            at = next;
         }
+        *hint = Some(at);
+        at
     }
-    best
 }
 
 /// Up to four points of `A - B`, kept without allocating.
@@ -56,18 +104,30 @@ const MAX_ITERATIONS: usize = 32;
 /// True when a plane with normal `d` (from A towards B) leaves all of `a` at least `margin`
 /// below all of `b`; `start` is the first direction tried (best: from A's centre to B's).
 pub fn separated(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> bool {
-    a.is_empty() || b.is_empty() || separating_axis(a, b, start, margin).is_some()
+    let (pa, pb) = (
+        Points {
+            points: a,
+            climb: None,
+        },
+        Points {
+            points: b,
+            climb: None,
+        },
+    );
+    a.is_empty() || b.is_empty() || separating_axis(pa, pb, start, margin).is_some()
 }
 
 /// [`separated`] that also hands back the direction that proved the gap: the best start for
 /// the same pair's next test, a step later (bodies move little, so it usually proves the gap
 /// again with one support evaluation). `None` when no gap above `margin` was proven.
-pub fn separating_axis(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> Option<Vec3> {
-    if a.is_empty() || b.is_empty() {
+pub fn separating_axis(a: Points, b: Points, start: &Vec3, margin: f64) -> Option<Vec3> {
+    if a.points.is_empty() || b.points.is_empty() {
         return None;
     }
     // The farthest point of A - B along d: max_A d.x - min_B d.x at once.
-    let diff = |d: &Vec3| support(a, d) - support(b, &-d);
+    let (mut hint_a, mut hint_b) = (None, None);
+    let mut diff =
+        |d: &Vec3| a.points[a.support(d, &mut hint_a)] - b.points[b.support(&-d, &mut hint_b)];
     let mut d = if start.norm() > 0.0 && start.norm().is_finite() {
         *start
     } else {

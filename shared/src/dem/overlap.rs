@@ -19,6 +19,7 @@
 //! bounding boxes, clipped to them (half-spaces holding `A ∩ B` leave it unchanged), and then
 //! only the planes of the other body that cut the box are applied.
 
+use super::gjk::{separating_axis, Points};
 use super::shape::{Posed, Shape};
 use crate::math::Vec3;
 
@@ -426,7 +427,7 @@ fn faces_around(s: &Shape, reach: &[u32], out: &mut Vec<u32>) {
 /// the many pairs whose boxes overlap while the bodies do not.
 pub fn overlap(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed) -> Option<Overlap> {
     let axis = centre_line(a, b);
-    if apart(a, b, &axis) {
+    if apart(sa, a, sb, b, &axis) {
         return None;
     }
     overlap_along(sa, a, sb, b, &axis)
@@ -438,15 +439,23 @@ const APART_REL: f64 = 1e-9;
 /// True when GJK certifies a gap of more than `APART_REL` x size between A and B, starting
 /// from `start`: then the exact overlap (whose round-off is ~1e-16 x size) is empty too, so
 /// taking this shortcut or not gives the same result.
-pub fn apart(a: &Posed, b: &Posed, start: &Vec3) -> bool {
-    gap_axis(a, b, start).is_some()
+pub fn apart(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, start: &Vec3) -> bool {
+    gap_axis(sa, a, sb, b, start).is_some()
 }
 
 /// [`apart`], handing back the direction that proves the gap (the best start for the same
 /// pair's test a step later), or `None`.
-pub fn gap_axis(a: &Posed, b: &Posed, start: &Vec3) -> Option<Vec3> {
+pub fn gap_axis(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, start: &Vec3) -> Option<Vec3> {
     let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
-    super::gjk::separating_axis(&a.vertices, &b.vertices, start, APART_REL * size)
+    let pa = Points {
+        points: &a.vertices,
+        climb: sa.climb.as_ref(),
+    };
+    let pb = Points {
+        points: &b.vertices,
+        climb: sb.climb.as_ref(),
+    };
+    separating_axis(pa, pb, start, APART_REL * size)
 }
 
 /// From the centre of A's bounding box to B's: the culling axis when no better one is known.

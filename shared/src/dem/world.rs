@@ -546,7 +546,7 @@ impl World {
                 None => {
                     let line = centre_line(pi, pj);
                     let start = self.separations.get(&(i, j)).unwrap_or(&line);
-                    if let Some(axis) = gap_axis(pi, pj, start) {
+                    if let Some(axis) = gap_axis(si, pi, sj, pj, start) {
                         return Some(Outcome::Apart(i, j, axis));
                     }
                     overlap_along(si, pi, sj, pj, &line)
