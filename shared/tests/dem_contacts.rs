@@ -342,7 +342,8 @@ fn grazing_vertex_contacts_have_the_depth_of_their_penetration() {
 /// the same, bit for bit, as with the scan: checked on Ab_2 and Ab_3 hulls (about 200 and 770
 /// vertices) and on a flat ellipsoid's hull (nearly coplanar vertices), from grazing to deep
 /// overlaps and separated poses, culled along several axes. GJK's gap proofs climb too: they
-/// must hold for every pose they are given for, and be found as often as with scanned supports.
+/// must hold for every pose they are given for, and be found as often as with scanned supports;
+/// a plane wall finds the same overlap by climbing to the lowest vertex.
 #[test]
 fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
     let mut large = Vec::new();
@@ -403,6 +404,18 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
             reach * unit_f64(rng.next_u64())
         };
         let b = at(t);
+        // A plane wall (outward normal `dir`) reaching into A from grazing to deep.
+        let low = a
+            .vertices
+            .iter()
+            .map(|v| dir.dot(v))
+            .fold(f64::MAX, f64::min);
+        let d = low + reach * (10f64.powf(-9.0 * unit_f64(rng.next_u64())) - 1e-6);
+        assert_eq!(
+            overlap_half_space(&large[i], &a, &dir, d),
+            overlap_half_space(&scanning[i], &a, &dir, d),
+            "trial {trial}: wall"
+        );
         for axis in [
             dir,
             centre(&b) - centre(&a),

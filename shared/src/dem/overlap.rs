@@ -607,8 +607,8 @@ fn swallowed(a: &Posed, b: &Posed, volume: f64) -> Vec3 {
 /// outward normal is `n`): volume, centroid, and B's area vector inside the wall; the normal from
 /// the wall to B is `n` itself.
 pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Overlap> {
-    // Quick reject: the box above the plane, then every vertex above it.
-    if box_excess(&-n, -d, &b.lo, &b.hi) <= 0.0 || b.vertices.iter().all(|v| n.dot(v) >= d) {
+    // Quick reject: the box above the plane.
+    if box_excess(&-n, -d, &b.lo, &b.hi) <= 0.0 {
         return None;
     }
     // Reference point on the plane: the cap (on the plane) adds no volume or moment.
@@ -617,21 +617,24 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
         ..Default::default()
     };
     SCRATCH.with_borrow_mut(|sc| {
-        let Clip {
-            poly,
-            tmp,
-            dist,
-            codes,
-        } = &mut sc.clip;
-        codes.clear();
-        codes.extend(b.vertices.iter().map(|v| u64::from(n.dot(v) > d)));
-        for f in 0..sb.face_count() {
-            let idx = sb.face(f);
-            if idx.iter().all(|&i| codes[i as usize] == 1) {
-                continue; // wholly outside the wall
-            }
+        let Scratch {
+            clip: Clip {
+                poly, tmp, dist, ..
+            },
+            side_b,
+            faces_b,
+            ..
+        } = sc;
+        // B's vertices inside the wall (n . v <= d), found from the lowest one (a climb for a
+        // large hull), and the faces around them, ascending: the faces that reach the wall.
+        if side_b.climb_to_top(sb, b, n, -1.0) <= -d {
+            return; // every vertex above the plane
+        }
+        side_b.reach_down_to(sb, b, n, -1.0, -d);
+        faces_around(sb, &side_b.reach, faces_b);
+        for &f in faces_b.iter() {
             poly.clear();
-            poly.extend(idx.iter().map(|&i| b.vertices[i as usize]));
+            poly.extend(sb.face(f as usize).iter().map(|&i| b.vertices[i as usize]));
             if clip(poly, tmp, dist, n, d) {
                 let _ = acc.piece(poly, true);
             }
