@@ -426,7 +426,7 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
             assert_eq!(climbed, scanned, "trial {trial}, axis {axis:?}");
             // The gap proof with climbed supports: only ever for bodies apart (checked by a
             // full scan along the direction it hands back), and as often as with scans.
-            let proof = gap_axis(&large[i], &a, &large[j], &b, &axis);
+            let proof = gap_axis(&large[i], &a, &large[j], &b, &axis, &mut Default::default());
             if let Some(d) = proof {
                 let top_a = a.vertices.iter().map(|v| d.dot(v)).fold(f64::MIN, f64::max);
                 let low_b = b.vertices.iter().map(|v| d.dot(v)).fold(f64::MAX, f64::min);
@@ -436,7 +436,14 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
                 );
                 assert!(scanned.is_none());
             }
-            let scan_proof = gap_axis(&scanning[i], &a, &scanning[j], &b, &axis);
+            let scan_proof = gap_axis(
+                &scanning[i],
+                &a,
+                &scanning[j],
+                &b,
+                &axis,
+                &mut Default::default(),
+            );
             proofs[usize::from(proof.is_some()) * 2 + usize::from(scan_proof.is_some())] += 1;
             if climbed.is_some() {
                 touching += 1;

@@ -114,20 +114,31 @@ pub fn separated(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> bool {
             climb: None,
         },
     );
-    a.is_empty() || b.is_empty() || separating_axis(pa, pb, start, margin).is_some()
+    let mut hints = Hints::default();
+    a.is_empty() || b.is_empty() || separating_axis(pa, pb, start, margin, &mut hints).is_some()
 }
+
+/// Where the climbs of A's and B's supports start (climbing hulls only), and where they ended:
+/// kept for the same pair's next test, whose supports then lie a step or two away.
+pub type Hints = [Option<usize>; 2];
 
 /// [`separated`] that also hands back the direction that proved the gap: the best start for
 /// the same pair's next test, a step later (bodies move little, so it usually proves the gap
-/// again with one support evaluation). `None` when no gap above `margin` was proven.
-pub fn separating_axis(a: Points, b: Points, start: &Vec3, margin: f64) -> Option<Vec3> {
+/// again with one support evaluation). `None` when no gap above `margin` was proven. The
+/// answer does not depend on `hints` (a climb from anywhere ends at a support).
+pub fn separating_axis(
+    a: Points,
+    b: Points,
+    start: &Vec3,
+    margin: f64,
+    hints: &mut Hints,
+) -> Option<Vec3> {
     if a.points.is_empty() || b.points.is_empty() {
         return None;
     }
     // The farthest point of A - B along d: max_A d.x - min_B d.x at once.
-    let (mut hint_a, mut hint_b) = (None, None);
-    let mut diff =
-        |d: &Vec3| a.points[a.support(d, &mut hint_a)] - b.points[b.support(&-d, &mut hint_b)];
+    let [hint_a, hint_b] = hints;
+    let mut diff = |d: &Vec3| a.points[a.support(d, hint_a)] - b.points[b.support(&-d, hint_b)];
     let mut d = if start.norm() > 0.0 && start.norm().is_finite() {
         *start
     } else {

@@ -19,7 +19,7 @@
 //! bounding boxes, clipped to them (half-spaces holding `A ∩ B` leave it unchanged), and then
 //! only the planes of the other body that cut the box are applied.
 
-use super::gjk::{separating_axis, Points};
+use super::gjk::{separating_axis, Hints, Points};
 use super::shape::{Posed, Shape};
 use crate::math::Vec3;
 
@@ -440,12 +440,20 @@ const APART_REL: f64 = 1e-9;
 /// from `start`: then the exact overlap (whose round-off is ~1e-16 x size) is empty too, so
 /// taking this shortcut or not gives the same result.
 pub fn apart(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, start: &Vec3) -> bool {
-    gap_axis(sa, a, sb, b, start).is_some()
+    gap_axis(sa, a, sb, b, start, &mut Hints::default()).is_some()
 }
 
 /// [`apart`], handing back the direction that proves the gap (the best start for the same
 /// pair's test a step later), or `None`.
-pub fn gap_axis(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, start: &Vec3) -> Option<Vec3> {
+/// `hints`: where large hulls' support climbs start, and ended (see [`Hints`]).
+pub fn gap_axis(
+    sa: &Shape,
+    a: &Posed,
+    sb: &Shape,
+    b: &Posed,
+    start: &Vec3,
+    hints: &mut Hints,
+) -> Option<Vec3> {
     let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
     let pa = Points {
         points: &a.vertices,
@@ -455,7 +463,7 @@ pub fn gap_axis(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, start: &Vec3) -> O
         points: &b.vertices,
         climb: sb.climb.as_ref(),
     };
-    separating_axis(pa, pb, start, APART_REL * size)
+    separating_axis(pa, pb, start, APART_REL * size, hints)
 }
 
 /// From the centre of A's bounding box to B's: the culling axis when no better one is known.

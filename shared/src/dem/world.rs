@@ -21,6 +21,7 @@
 //! Energy audit: kinetic + elastic (normal and shear springs) + friction and damping
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
 
+use super::gjk::Hints;
 use super::overlap::{centre_line, gap_axis, overlap_along, Overlap};
 use super::shape::{Posed, Shape};
 use super::wall::Wall;
@@ -187,9 +188,10 @@ pub struct World {
     /// contacts. Derived, not part of the state.
     pub unbalanced: f64,
     /// For body pairs whose boxes overlapped last step while the bodies did not: the direction
-    /// that proved the gap, where this step's proof starts. Only speed depends on it (the proof
-    /// is exact beyond round-off, see `overlap::apart`), so it is not part of the state.
-    separations: BTreeMap<(u32, u32), Vec3>,
+    /// that proved the gap and the supports it ended on, where this step's proof starts. Only
+    /// speed depends on it (the proof is exact beyond round-off, see `overlap::apart`), so it
+    /// is not part of the state.
+    separations: BTreeMap<(u32, u32), (Vec3, Hints)>,
     /// Scratch of the broad phase, kept between steps for its buffers: the posed bodies and
     /// the sweep order. Not part of the state (rebuilt every step).
     posed: Vec<Posed>,
@@ -223,8 +225,8 @@ impl StepTimes {
 /// What the narrow phase finds for one candidate pair.
 enum Outcome {
     Touch(Touch),
-    /// Bodies `i < j` apart, as proven along this direction.
-    Apart(u32, u32, Vec3),
+    /// Bodies `i < j` apart, as proven along this direction, with the supports it ended on.
+    Apart(u32, u32, Vec3, Hints),
 }
 
 /// What the narrow phase hands back for one touching pair.
@@ -545,9 +547,13 @@ impl World {
                 Some(c) => overlap_along(si, pi, sj, pj, &c.normal),
                 None => {
                     let line = centre_line(pi, pj);
-                    let start = self.separations.get(&(i, j)).unwrap_or(&line);
-                    if let Some(axis) = gap_axis(si, pi, sj, pj, start) {
-                        return Some(Outcome::Apart(i, j, axis));
+                    let (start, mut hints) = self
+                        .separations
+                        .get(&(i, j))
+                        .copied()
+                        .unwrap_or((line, Hints::default()));
+                    if let Some(axis) = gap_axis(si, pi, sj, pj, &start, &mut hints) {
+                        return Some(Outcome::Apart(i, j, axis, hints));
                     }
                     overlap_along(si, pi, sj, pj, &line)
                 }
@@ -565,8 +571,8 @@ impl World {
         for outcome in outcomes {
             match outcome {
                 Outcome::Touch(t) => touches.push(t),
-                Outcome::Apart(i, j, axis) => {
-                    separations.insert((i, j), axis);
+                Outcome::Apart(i, j, axis, hints) => {
+                    separations.insert((i, j), (axis, hints));
                 }
             }
         }
