@@ -554,3 +554,36 @@ fn abrading_a_world_keeps_each_body_in_place_inside_its_old_surface() {
         }
     }
 }
+
+/// `World::simplify` (`dem --simplify`): every body keeps its place on a subset of its old
+/// vertices; shapes within the budget are left alone.
+#[test]
+fn simplifying_a_world_keeps_each_body_on_its_old_vertices() {
+    use shared::subdiv::subdivide;
+    let cube_mesh = cube(0.5);
+    let smooth = subdivide(&cube_mesh, &cube_mesh.topology(None).unwrap(), 2);
+    let mut w = World::new(Material::default(), Vec3::zeros());
+    let s = w.add_shape(Shape::from_mesh(&smooth).unwrap());
+    let c = w.add_shape(Shape::from_mesh(&cube_mesh).unwrap());
+    let turn = UnitQuaternion::from_euler_angles(0.3, -0.7, 1.1);
+    w.add_body(s, 0.02, Vec3::new(0.1, 0.2, 0.3), turn);
+    w.add_body(c, 0.01, Vec3::new(0.2, 0.2, 0.3), turn);
+    let before = w.clone();
+    w.simplify(20).unwrap();
+    let (old, new) = (&before.bodies[0], &w.bodies[0]);
+    let (so, sn) = (&before.shapes[0], &w.shapes[0]);
+    assert!(so.vertices.len() > 20 && sn.vertices.len() == 20);
+    assert!(sn.volume < so.volume);
+    let oldp = so.posed(&old.pos, &old.rot, old.scale);
+    for v in &sn.posed(&new.pos, &new.rot, new.scale).vertices {
+        let near = oldp
+            .vertices
+            .iter()
+            .map(|o| (o - v).norm())
+            .fold(f64::MAX, f64::min);
+        assert!(near < 1e-15, "vertex {v} is {near:e} m from the old ones");
+    }
+    // The cube (8 vertices) is within the budget: the same shape and body.
+    assert_eq!(w.shapes[1].vertices, before.shapes[1].vertices);
+    assert_eq!(w.bodies[1].pos, before.bodies[1].pos);
+}

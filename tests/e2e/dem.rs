@@ -172,6 +172,10 @@ fn bad_scenes_and_arguments() {
     for (args, needle) in [
         (&["--abrade", "5", "--steps", "1"][..], "'5' for '--abrade"),
         (&["--abrade", "x", "--steps", "1"][..], "'x' for '--abrade"),
+        (
+            &["--simplify", "3", "--steps", "1"][..],
+            "'3' for '--simplify",
+        ),
     ] {
         let out = run("dem", args, &scene);
         let err = String::from_utf8_lossy(&out.stderr);
@@ -271,6 +275,16 @@ fn abrade_turns_a_scene_into_its_ab_k_hulls() {
     for (a, b) in sharp.iter().zip(&smooth) {
         assert!(*b > 4 * a, "{a} vertices abraded twice gave {b}");
     }
+    // Cut to a vertex budget: each abraded shape keeps at most that many vertices.
+    let cut = vertices(&ok(
+        "dem",
+        &["--abrade", "2", "--simplify", "40", "--steps", "0"],
+        &scene,
+    ));
+    assert!(
+        cut.iter().all(|&n| n <= 40) && cut.iter().any(|&n| n == 40),
+        "{cut:?}"
+    );
     // The abraded scene runs.
     let state = ok("dem", &["--abrade", "1", "--steps", "200"], &scene);
     assert!(String::from_utf8_lossy(&state).contains("\"step\":200"));

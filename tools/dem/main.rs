@@ -17,6 +17,7 @@ Examples:
   dem --steps 1000 < settled.jsonl | dem --steps 1000 > a.jsonl   (same bytes as --steps 2000)
   dem --import-peer ../shared/peers/yade/scene_500.txt --steps 0 > scene500.jsonl
   dem --abrade 2 --steps 0 < examples/drop.jsonl > drop-ab2.jsonl   (the same scene as Ab_2 hulls)
+  dem --abrade 3 --simplify 100 --steps 0 < examples/drop.jsonl      (Ab_3 hulls cut to 100 vertices)
   dem --time 0.3 --vtk out/drop --vtk-every 20000 < examples/drop.jsonl > /dev/null
   dem --until-unbalanced 1e-3 --time 2 < examples/drop.jsonl > settled.jsonl
       then open out/drop/particles.pvd (and contacts.pvd, walls.pvd) in ParaView
@@ -87,6 +88,10 @@ struct Cli {
     #[arg(long, value_name = "LEVELS", default_value_t = 0,
           value_parser = clap::value_parser!(u32).range(0..=4))]
     abrade: u32,
+    /// Cut every shape of more than N vertices to N (after --abrade): the hull of N of its
+    /// vertices (the `simplify` tool's choice), inside it; bodies stay in place as with --abrade
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(4..))]
+    simplify: Option<u32>,
 }
 
 #[derive(Serialize)]
@@ -154,6 +159,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
             .abrade(args.abrade)
             .map_err(|e| anyhow::anyhow!("--abrade: {e}"))?;
         world.dt = 0.0; // smaller bodies: the scene's step may be above their critical one
+    }
+    if let Some(n) = args.simplify {
+        world
+            .simplify(n as usize)
+            .map_err(|e| anyhow::anyhow!("--simplify: {e}"))?;
+        world.dt = 0.0;
     }
     for (name, value) in [("--kn", args.kn), ("--ks", args.ks)] {
         if let Some(k) = value {

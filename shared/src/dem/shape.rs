@@ -48,6 +48,10 @@ pub struct Shape {
     pub climb: Option<Climb>,
 }
 
+/// A shape made from another ([`Shape::abraded`], [`Shape::simplified`]), with where its
+/// principal frame sits in the other's: centroid and rotation.
+pub type Remade = (Shape, Vec3, UnitQuaternion<f64>);
+
 /// Below this many vertices the narrow phase scans them all (cheaper than climbing).
 pub const CLIMB_MIN: usize = 48;
 
@@ -175,11 +179,33 @@ impl Shape {
     }
 
     /// The paper's abrasion of this shape (Ab_`levels` from it): the convex hull of its surface
-    /// subdivided `levels` times by Catmull-Clark, which lies inside it. The new shape has its
-    /// own principal frame; also returned is where that frame sits in this shape's frame
-    /// (centroid and rotation), to keep a body in place. `centroid_in_mesh` and
+    /// subdivided `levels` times by Catmull-Clark, which lies inside it. See [`Shape::remade`]
+    /// for what is returned.
+    pub fn abraded(&self, levels: u32) -> Result<Remade, String> {
+        self.remade(|mesh| {
+            let topo = mesh.topology(None).map_err(|e| e.to_string())?;
+            Ok(subdivide(mesh, &topo, levels))
+        })
+    }
+
+    /// This shape cut to `budget` vertices ([`hull::simplified_hull`], inside it): the
+    /// engine's side of the `simplify` tool. See [`Shape::remade`] for what is returned.
+    pub fn simplified(&self, budget: usize) -> Result<Remade, String> {
+        self.remade(|mesh| {
+            Ok(hull::simplified_hull(&mesh.vertices, budget)
+                .map_err(|e| e.to_string())?
+                .mesh)
+        })
+    }
+
+    /// The shape of the hull of `make(this shape's mesh)` (mesh in this shape's frame). The new
+    /// shape has its own principal frame; also returned is where that frame sits in this
+    /// shape's frame (centroid and rotation), to keep a body in place. `centroid_in_mesh` and
     /// `frame_in_mesh` still refer to the source mesh.
-    pub fn abraded(&self, levels: u32) -> Result<(Shape, Vec3, UnitQuaternion<f64>), String> {
+    fn remade(
+        &self,
+        make: impl FnOnce(&PolyMesh) -> Result<PolyMesh, String>,
+    ) -> Result<Remade, String> {
         let mesh = PolyMesh {
             name: self.name.clone(),
             vertices: self.vertices.clone(),
@@ -187,11 +213,9 @@ impl Shape {
             face_verts: self.face_verts.clone(),
             ..Default::default()
         };
-        let topo = mesh
-            .topology(None)
-            .map_err(|e| format!("shape '{}': {e}", self.name))?;
-        let mut out =
-            Shape::from_mesh(&subdivide(&mesh, &topo, levels)).map_err(|e| e.to_string())?;
+        let mut made = make(&mesh).map_err(|e| format!("shape '{}': {e}", self.name))?;
+        made.name = self.name.clone();
+        let mut out = Shape::from_mesh(&made).map_err(|e| e.to_string())?;
         let (offset, turn) = (out.centroid_in_mesh, out.frame_in_mesh);
         out.centroid_in_mesh = self.centroid_in_mesh + self.frame_in_mesh * offset;
         out.frame_in_mesh = self.frame_in_mesh * turn;

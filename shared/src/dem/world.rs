@@ -23,7 +23,7 @@
 
 use super::gjk::Hints;
 use super::overlap::{centre_line, gap_axis, overlap_along, Overlap};
-use super::shape::{Posed, Shape};
+use super::shape::{Posed, Remade, Shape};
 use super::wall::Wall;
 use crate::math::Vec3;
 use nalgebra::{Unit, UnitQuaternion};
@@ -294,19 +294,39 @@ impl World {
         self.bodies.len() - 1
     }
 
-    /// Abrades every shape `levels` times in place ([`Shape::abraded`]): each body keeps where
-    /// its material was (the abraded surface lies inside the old one, so bodies only shrink),
-    /// its velocity and its angular velocity, with the new mass and moments. Contacts are
-    /// dropped (their depths and springs belonged to the old surfaces; the next step finds the
-    /// new ones) and the energy audit starts again from the new kinetic energy.
+    /// Abrades every shape `levels` times in place ([`Shape::abraded`]); see [`World::reshape`].
     pub fn abrade(&mut self, levels: u32) -> Result<(), String> {
         if levels == 0 {
             return Ok(());
         }
-        let abraded = filter_map_maybe_par(&self.shapes, true, |s| Some(s.abraded(levels)));
-        let mut moved = Vec::with_capacity(abraded.len());
-        for (s, a) in self.shapes.iter_mut().zip(abraded) {
-            let (shape, offset, turn) = a?;
+        self.reshape(|s| s.abraded(levels))
+    }
+
+    /// Cuts every shape to `budget` vertices in place ([`Shape::simplified`]; shapes within
+    /// the budget stay as they are); see [`World::reshape`].
+    pub fn simplify(&mut self, budget: usize) -> Result<(), String> {
+        self.reshape(|s| {
+            if s.vertices.len() <= budget {
+                Ok((s.clone(), Vec3::zeros(), UnitQuaternion::identity()))
+            } else {
+                s.simplified(budget)
+            }
+        })
+    }
+
+    /// Replaces every shape by `remake(shape)`, a shape inside it: each body keeps where its
+    /// material was (so bodies only shrink), its velocity and its angular velocity, with the new
+    /// mass and moments. Contacts are dropped (their depths and springs belonged to the old
+    /// surfaces; the next step finds the new ones) and the energy audit starts again from the
+    /// new kinetic energy.
+    fn reshape(
+        &mut self,
+        remake: impl Fn(&Shape) -> Result<Remade, String> + Sync + Send,
+    ) -> Result<(), String> {
+        let remade = filter_map_maybe_par(&self.shapes, true, |s| Some(remake(s)));
+        let mut moved = Vec::with_capacity(remade.len());
+        for (s, r) in self.shapes.iter_mut().zip(remade) {
+            let (shape, offset, turn) = r?;
             *s = shape;
             moved.push((offset, turn));
         }
