@@ -281,10 +281,7 @@ fn abrade_turns_a_scene_into_its_ab_k_hulls() {
         &["--abrade", "2", "--simplify", "40", "--steps", "0"],
         &scene,
     ));
-    assert!(
-        cut.iter().all(|&n| n <= 40) && cut.iter().any(|&n| n == 40),
-        "{cut:?}"
-    );
+    assert!(cut.iter().all(|&n| n <= 40) && cut.contains(&40), "{cut:?}");
     // The abraded scene runs.
     let state = ok("dem", &["--abrade", "1", "--steps", "200"], &scene);
     assert!(String::from_utf8_lossy(&state).contains("\"step\":200"));
