@@ -337,8 +337,8 @@ fn grazing_vertex_contacts_have_the_depth_of_their_penetration() {
     assert!(checked > 1000, "only {checked} caps checked");
 }
 
-/// Large hulls find the vertices in the culling slab by climbing the vertex graph from a few
-/// probes instead of scanning every vertex. The vertex sets are the same, so the overlap must be
+/// Large hulls find the vertices in the culling slab by climbing the vertex graph (from the
+/// vertex their cube map of directions gives) instead of scanning every vertex. The vertex sets are the same, so the overlap must be
 /// the same, bit for bit, as with the scan: checked on Ab_2 and Ab_3 hulls (about 200 and 770
 /// vertices) and on a flat ellipsoid's hull (nearly coplanar vertices), from grazing to deep
 /// overlaps and separated poses, culled along several axes. GJK's gap proofs climb too: they

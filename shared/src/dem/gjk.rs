@@ -11,13 +11,15 @@
 
 use super::shape::Climb;
 use crate::math::Vec3;
+use nalgebra::Rotation3;
 
 /// A convex point set for GJK: its points, and for a large hull the vertex graph to find a
 /// support by climbing (see [`Climb`]) instead of scanning every point.
 #[derive(Clone, Copy)]
 pub struct Points<'a> {
     pub points: &'a [Vec3],
-    pub climb: Option<&'a Climb>,
+    /// The hull's vertex graph and the body's rotation (to start a climb from [`Climb::start`]).
+    pub climb: Option<(&'a Climb, &'a Rotation3<f64>)>,
 }
 
 impl Points<'_> {
@@ -27,7 +29,7 @@ impl Points<'_> {
     /// stop below the true support by ~1e-14 of the coordinates, far inside GJK's margin.
     fn support(&self, d: &Vec3, hint: &mut Option<usize>) -> usize {
         let points = self.points;
-        let Some(climb) = self.climb else {
+        let Some((climb, rot)) = self.climb else {
             let mut best = 0;
             let mut reach = d.dot(&points[0]);
             for (i, p) in points.iter().enumerate().skip(1) {
@@ -40,19 +42,7 @@ impl Points<'_> {
             return best;
         };
         let height = |i: usize| d.dot(&points[i]);
-        let mut at = hint.unwrap_or_else(|| {
-            climb
-                .probes
-                .iter()
-                .map(|&i| i as usize)
-                .fold(climb.probes[0] as usize, |b, i| {
-                    if height(i) > height(b) {
-                        i
-                    } else {
-                        b
-                    }
-                })
-        });
+        let mut at = hint.unwrap_or_else(|| climb.start(rot, d));
         let mut top = height(at);
         loop {
             let mut next = at;

@@ -135,22 +135,25 @@ struct Scratch {
 /// One body's vertices along the slab's axis, facing the other body: heights `sign n . v`
 /// (A: `sign` 1, B: -1, so that both reach towards the other), its top, and the vertices that
 /// reach into the slab. A small shape has every height computed; a large one ([`Shape::climb`])
-/// only those its climb and its walk over the slab visit (the others stay NaN).
+/// only those its climb and its walk over the slab visit: a height (and the walk's mark) is
+/// valid when its stamp is this climb's `stamp`, so nothing is cleared between climbs.
 #[derive(Default)]
 struct Side {
     heights: Vec<f64>,
     top: usize,
     reach: Vec<u32>,
     stack: Vec<u32>,
-    seen: Vec<bool>,
+    stamp: u32,
+    height_stamps: Vec<u32>,
+    seen_stamps: Vec<u32>,
 }
 
 impl Side {
     /// The greatest height of a vertex of `p` (a posed `s`) along `sign n`.
     fn climb_to_top(&mut self, s: &Shape, p: &Posed, n: &Vec3, sign: f64) -> f64 {
         let vs = &p.vertices;
-        self.heights.clear();
         let Some(c) = &s.climb else {
+            self.heights.clear();
             self.heights.extend(vs.iter().map(|v| sign * n.dot(v)));
             let (mut best, mut at) = (f64::NEG_INFINITY, 0);
             for (i, &h) in self.heights.iter().enumerate() {
@@ -161,16 +164,23 @@ impl Side {
             self.top = at;
             return best;
         };
-        self.heights.resize(vs.len(), f64::NAN);
-        let heights = &mut self.heights;
-        let mut height = |i: usize| lazy_height(heights, vs, n, sign, i);
-        let (mut best, mut at) = (f64::NEG_INFINITY, 0);
-        for &i in &c.probes {
-            let h = height(i as usize);
-            if h > best {
-                (best, at) = (h, i as usize);
-            }
+        if self.stamp == u32::MAX {
+            self.height_stamps.fill(0);
+            self.seen_stamps.fill(0);
+            self.stamp = 0;
         }
+        self.stamp += 1;
+        if self.height_stamps.len() < vs.len() {
+            self.height_stamps.resize(vs.len(), 0);
+            self.seen_stamps.resize(vs.len(), 0);
+        }
+        if self.heights.len() < vs.len() {
+            self.heights.resize(vs.len(), 0.0);
+        }
+        let (heights, stamps, stamp) = (&mut self.heights, &mut self.height_stamps, self.stamp);
+        let mut height = |i: usize| lazy_height(heights, stamps, stamp, vs, n, sign, i);
+        let mut at = c.start(&p.rot, &(n * sign));
+        let mut best = height(at);
         // Steepest ascent: on a convex polytope a vertex with no higher neighbour is a top.
         loop {
             let mut next = None;
@@ -201,21 +211,24 @@ impl Side {
             return;
         };
         let vs = &p.vertices;
-        let (heights, seen) = (&mut self.heights, &mut self.seen);
-        seen.clear();
-        seen.resize(vs.len(), false);
-        seen[self.top] = true;
+        let (heights, stamps, seen, stamp) = (
+            &mut self.heights,
+            &mut self.height_stamps,
+            &mut self.seen_stamps,
+            self.stamp,
+        );
+        seen[self.top] = stamp;
         self.stack.clear();
         self.stack.push(self.top as u32);
         self.reach.push(self.top as u32);
         while let Some(v) = self.stack.pop() {
             for &w in c.neighbors(v as usize) {
                 let wi = w as usize;
-                if seen[wi] {
+                if seen[wi] == stamp {
                     continue;
                 }
-                if lazy_height(heights, vs, n, sign, wi) >= floor {
-                    seen[wi] = true;
+                if lazy_height(heights, stamps, stamp, vs, n, sign, wi) >= floor {
+                    seen[wi] = stamp;
                     self.reach.push(w);
                     self.stack.push(w);
                 }
@@ -225,10 +238,19 @@ impl Side {
     }
 }
 
-/// Vertex `i`'s height `sign n . v`, computed the first time it is asked for (NaN until then).
-fn lazy_height(heights: &mut [f64], vs: &[Vec3], n: &Vec3, sign: f64, i: usize) -> f64 {
-    if heights[i].is_nan() {
+/// Vertex `i`'s height `sign n . v`, computed the first time this climb (`stamp`) asks for it.
+fn lazy_height(
+    heights: &mut [f64],
+    stamps: &mut [u32],
+    stamp: u32,
+    vs: &[Vec3],
+    n: &Vec3,
+    sign: f64,
+    i: usize,
+) -> f64 {
+    if stamps[i] != stamp {
         heights[i] = sign * n.dot(&vs[i]);
+        stamps[i] = stamp;
     }
     heights[i]
 }
@@ -457,11 +479,11 @@ pub fn gap_axis(
     let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
     let pa = Points {
         points: &a.vertices,
-        climb: sa.climb.as_ref(),
+        climb: sa.climb.as_ref().map(|c| (c, &a.rot)),
     };
     let pb = Points {
         points: &b.vertices,
-        climb: sb.climb.as_ref(),
+        climb: sb.climb.as_ref().map(|c| (c, &b.rot)),
     };
     separating_axis(pa, pb, start, APART_REL * size, hints)
 }

@@ -64,9 +64,27 @@ pub const CLIMB_MIN: usize = 48;
 pub struct Climb {
     neighbor_start: Vec<u32>,
     neighbors: Vec<u32>,
-    /// Starting points: the vertices farthest along the 26 directions of a 3x3x3 cube's
-    /// faces, edges and corners (shape frame), deduplicated.
-    pub probes: Vec<u32>,
+    /// Where a climb starts: for each cell of a cube map of directions (shape frame,
+    /// [`START_CELLS`] x [`START_CELLS`] cells on each of the six faces), the vertex farthest
+    /// along the cell's central direction. A climb from there is a step or two.
+    starts: Vec<u32>,
+}
+
+/// Cells along each edge of a face of [`Climb`]'s cube map of directions.
+pub const START_CELLS: usize = 4;
+
+/// The cube-map cell of direction `d` (shape frame): face by the largest component, then the
+/// other two components over it.
+fn start_cell(d: &Vec3) -> usize {
+    let a = d.iamax();
+    let (u, v) = ((a + 1) % 3, (a + 2) % 3);
+    let face = 2 * a + usize::from(d[a] < 0.0);
+    let m = d[a].abs();
+    let cell = |x: f64| {
+        let c = ((x / m + 1.0) * 0.5 * START_CELLS as f64).floor();
+        (c.max(0.0) as usize).min(START_CELLS - 1) // NaN (a zero d) goes to 0 too
+    };
+    (face * START_CELLS + cell(d[u])) * START_CELLS + cell(d[v])
 }
 
 impl Climb {
@@ -100,26 +118,34 @@ impl Climb {
             neighbors.extend_from_slice(&around);
             neighbor_start.push(neighbors.len() as u32);
         }
-        let mut probes: Vec<u32> = (0..27)
-            .filter(|&k| k != 13)
+        let n = START_CELLS as f64;
+        let starts = (0..6 * START_CELLS * START_CELLS)
             .map(|k| {
-                let d = Vec3::new(
-                    (k % 3) as f64 - 1.0,
-                    ((k / 3) % 3) as f64 - 1.0,
-                    (k / 9) as f64 - 1.0,
+                let (face, i, j) = (
+                    k / (START_CELLS * START_CELLS),
+                    (k / START_CELLS) % START_CELLS,
+                    k % START_CELLS,
                 );
+                let (a, sign) = (face / 2, if face % 2 == 0 { 1.0 } else { -1.0 });
+                let mut d = Vec3::zeros();
+                d[a] = sign;
+                d[(a + 1) % 3] = -1.0 + (2 * i + 1) as f64 / n;
+                d[(a + 2) % 3] = -1.0 + (2 * j + 1) as f64 / n;
                 (0..vertices.len())
-                    .max_by(|&a, &b| d.dot(&vertices[a]).total_cmp(&d.dot(&vertices[b])))
+                    .max_by(|&p, &q| d.dot(&vertices[p]).total_cmp(&d.dot(&vertices[q])))
                     .unwrap_or(0) as u32
             })
             .collect();
-        probes.sort_unstable();
-        probes.dedup();
         Some(Climb {
             neighbor_start,
             neighbors,
-            probes,
+            starts,
         })
+    }
+
+    /// A vertex near the top along `d` (world) for a body turned by `rot`: where to climb from.
+    pub fn start(&self, rot: &Rotation3<f64>, d: &Vec3) -> usize {
+        self.starts[start_cell(&rot.inverse_transform_vector(d))] as usize
     }
 
     /// The vertices next to `v`.
