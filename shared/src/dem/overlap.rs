@@ -111,8 +111,12 @@ struct Clip {
     tmp: Vec<Vec3>,
     dist: Vec<f64>,
     /// Per vertex of the body being clipped, which planes it lies outside of (bits 0..8: the
-    /// bounds, then the first [`CODED`] cutting planes), or [`UNCODED`] until needed.
+    /// bounds, then the first [`CODED`] cutting planes), computed when first needed: valid when
+    /// its stamp is the current call's `stamp` (nothing is cleared between calls: an Ab_3 hull
+    /// has ~770 vertices, a contact needs a few dozen).
     codes: Vec<u64>,
+    code_stamps: Vec<u32>,
+    stamp: u32,
 }
 
 /// Reusable buffers of the overlap, one set per thread.
@@ -257,7 +261,6 @@ fn lazy_height(
 
 /// Cutting planes beyond this many are tested face by face instead of by vertex codes.
 const CODED: usize = 55;
-const UNCODED: u64 = 1 << 63;
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
@@ -340,19 +343,28 @@ fn clip_faces(
     size: f64,
     buffers: &mut Clip,
 ) {
+    if buffers.stamp == u32::MAX {
+        buffers.code_stamps.fill(0);
+        buffers.stamp = 0;
+    }
+    buffers.stamp += 1;
+    if buffers.codes.len() < x.vertices.len() {
+        buffers.codes.resize(x.vertices.len(), 0);
+        buffers.code_stamps.resize(x.vertices.len(), 0);
+    }
     let Clip {
         poly,
         tmp,
         dist,
         codes,
+        code_stamps,
+        stamp,
     } = buffers;
     // Which planes each vertex lies outside of, computed when a face first needs the vertex:
     // a face outside one plane with all its vertices is culled, and a plane that none of its
     // vertices lies outside of cannot clip it.
     let plane = |j: u32| &y_planes[j as usize];
     let coded = cuts.len().min(CODED);
-    codes.clear();
-    codes.resize(x.vertices.len(), UNCODED);
     'faces: for (&f, (n, xd)) in faces.iter().zip(x_planes) {
         let f = f as usize;
         let idx = sx.face(f);
@@ -367,7 +379,8 @@ fn clip_faces(
         let (mut all, mut any) = (u64::MAX, 0u64);
         for &i in idx {
             let c = &mut codes[i as usize];
-            if *c == UNCODED {
+            if code_stamps[i as usize] != *stamp {
+                code_stamps[i as usize] = *stamp;
                 let v = &x.vertices[i as usize];
                 let out = |(k, (m, d)): (usize, (&Vec3, f64))| u64::from(m.dot(v) > d) << k;
                 *c = bounds
