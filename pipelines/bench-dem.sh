@@ -14,9 +14,10 @@
 # - Yade itself on its own settled 500 bed, when `yade` is installed (settled once, 16 minutes).
 # Each of our rows also prints where the step time goes and the peak resident memory, and the
 # contacts per particle as the peer counts them. Results: docs/bench.md.
-# Usage: pipelines/bench-dem.sh [STEPS]   (default 1000; dem must be on PATH)
+# Usage: pipelines/bench-dem.sh [STEPS]   (default 1000; Yade: YADE_STEPS, default 200, its
+# 1.4e3 particle-steps/s make 1000 steps six minutes; dem must be on PATH)
 set -euo pipefail
-steps=${1:-1000}
+steps=${1:-1000} ysteps=${YADE_STEPS:-200}
 peers=${PEERS:-../shared/peers/yade}
 out=${OUT:-out}/bench
 settle=$(dirname "$0")/settle-peer.sh
@@ -55,7 +56,7 @@ if command -v yade >/dev/null && [ ! -f "$yade_state" ]; then
   yade -j 2 -n -f2 -x "$peers/run_yade.py" "$peers/scene_500.txt" --shape poly --warmup 0 \
     --settle 2.0 --settle-wall 840 --save "$yade_state" --steps 10 >"$out/yade-settle.log" 2>&1
 fi
-echo "machine: $(nproc) cores; dem, $steps timed steps each"
+echo "machine: $(nproc) cores; dem, $steps timed steps each; Yade, $ysteps"
 row() {  # label, threads, dem arguments... (the scene on stdin)
   local label=$1 th=$2; shift 2
   local log
@@ -90,7 +91,7 @@ if [ -f "$yade_state" ]; then
   for th in 1 2; do
     printf '%-40s %s thread(s)  ' "Yade, its settled 500 bed" "$th"
     yade -j "$th" -n -f2 -x "$peers/run_yade.py" "$peers/scene_500.txt" --shape poly \
-      --load "$yade_state" --warmup 0 --steps "$steps" 2>&1 | grep '^RESULT' || echo "(no RESULT line)"
+      --load "$yade_state" --warmup 0 --steps "$ysteps" 2>&1 | grep '^RESULT' || echo "(no RESULT line)"
   done
 else
   echo "Yade: not installed here (apt-get install yade); its rows skipped"
