@@ -7,6 +7,7 @@
 #   kn = 5e3 N/m, and the same beds as Ab_3 hulls (`dem --abrade 3`, settled again). A step's
 #   cost depends on the contacts, not on kn: timed at the kn they settled with.
 #   BIG=0 skips the 2000 and 5000 beds, AB3=0 the Ab_3 beds;
+# - the 500 Ab_3 bed with its hulls cut to 200, 100, 50 vertices (`dem --simplify`);
 # - the 500 bed stiffened to the paper's kn = 1e8 N/m (fewer, thinner contacts), and as Ab_3;
 # - Yade's own settled state loaded as it is (its volumetric law leaves overlaps of 0.23 mm:
 #   deep contacts under our law, so this measures deep-overlap cost);
@@ -74,6 +75,16 @@ for n in "${sizes[@]}"; do
     done
   fi
 done
+# Speed against shape error: the 500 Ab_3 bed with its hulls cut to a vertex budget in place
+# (`dem --simplify N`: inside the full hulls, so a few contacts open; not settled again).
+if [ -f "$out/ab3soft500.jsonl" ]; then
+  for budget in 200 100 50; do
+    for th in 1 2; do
+      row "500 Ab_3 bed cut to $budget vertices" "$th" --simplify "$budget" --steps "$steps" \
+        < "$out/ab3soft500.jsonl"
+    done
+  done
+fi
 for bed in "stiff500:500 bed at kn = 1e8 (ours)" "ab3stiff500:500 Ab_3 bed at kn = 1e8 (ours)"; do
   [ -f "$out/${bed%%:*}.jsonl" ] || continue
   for th in 1 2; do
