@@ -9,7 +9,8 @@
 #       1e-3: a dense bed at rest, 5-6 contacts per particle as the peer counts them.
 #   settle-peer.sh abrade K IN.jsonl OUT.jsonl
 #       Every particle of a settled bed turned into its Ab_K hull in place (`dem --abrade K`),
-#       then settled again the same way (the abraded particles are smaller: the bed loosens).
+#       then settled again the same way for at most 0.5 s (the abraded particles are smaller:
+#       the bed loosens and sinks).
 #   settle-peer.sh stiffen IN.jsonl OUT.jsonl [R [STEPS]]
 #       A soft bed stiffened tenfold per stage up to the paper's kn = 1e8 N/m (ks = kn / 2),
 #       local damping DAMP (default 0.7), each stage until the ratio is below R (1e-2) or STEPS
@@ -40,7 +41,7 @@ case $mode in
     [ $# -eq 3 ] || usage
     levels=$1 in=$2 out=$3
     echo "settle-peer: $in as Ab_$levels hulls, settling again at kn = 5e3 N/m" >&2
-    dem --abrade "$levels" "${soft[@]}" --time 2 < "$in" > "$out.tmp"
+    dem --abrade "$levels" "${soft[@]}" --time 0.5 < "$in" > "$out.tmp"
     ;;
   stiffen)
     [ $# -ge 2 ] && [ $# -le 4 ] || usage
