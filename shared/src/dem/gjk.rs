@@ -41,23 +41,8 @@ impl Points<'_> {
             }
             return best;
         };
-        let height = |i: usize| d.dot(&points[i]);
-        let mut at = hint.unwrap_or_else(|| climb.start(rot, d));
-        let mut top = height(at);
-        loop {
-            let mut next = at;
-            for &n in climb.neighbors(at) {
-                let h = height(n as usize);
-                if h > top {
-                    top = h;
-                    next = n as usize;
-                }
-            }
-            if next == at {
-                break;
-            }
-            at = next;
-        }
+        let from = hint.unwrap_or_else(|| climb.start(rot, d));
+        let (at, _) = climb.ascend(from, |i| d.dot(&points[i]));
         *hint = Some(at);
         at
     }

@@ -182,23 +182,9 @@ impl Side {
             self.heights.resize(vs.len(), 0.0);
         }
         let (heights, stamps, stamp) = (&mut self.heights, &mut self.height_stamps, self.stamp);
-        let mut height = |i: usize| lazy_height(heights, stamps, stamp, vs, n, sign, i);
-        let mut at = c.start(&p.rot, &(n * sign));
-        let mut best = height(at);
+        let height = |i: usize| lazy_height(heights, stamps, stamp, vs, n, sign, i);
         // Steepest ascent: on a convex polytope a vertex with no higher neighbour is a top.
-        loop {
-            let mut next = None;
-            for &w in c.neighbors(at) {
-                let h = height(w as usize);
-                if h > best {
-                    (best, next) = (h, Some(w as usize));
-                }
-            }
-            match next {
-                Some(w) => at = w,
-                None => break,
-            }
-        }
+        let (at, best) = c.ascend(c.start(&p.rot, &(n * sign)), height);
         self.top = at;
         best
     }

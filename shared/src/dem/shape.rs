@@ -148,6 +148,25 @@ impl Climb {
         self.starts[start_cell(&rot.inverse_transform_vector(d))] as usize
     }
 
+    /// Steepest ascent of `height` over the graph from vertex `from`: the first vertex with no
+    /// higher neighbour (on a convex polytope, for a linear height, a top), and its height.
+    pub fn ascend(&self, from: usize, mut height: impl FnMut(usize) -> f64) -> (usize, f64) {
+        let (mut at, mut top) = (from, height(from));
+        loop {
+            let mut next = at;
+            for &w in self.neighbors(at) {
+                let h = height(w as usize);
+                if h > top {
+                    (top, next) = (h, w as usize);
+                }
+            }
+            if next == at {
+                return (at, top);
+            }
+            at = next;
+        }
+    }
+
     /// The vertices next to `v`.
     pub fn neighbors(&self, v: usize) -> &[u32] {
         &self.neighbors[self.neighbor_start[v] as usize..self.neighbor_start[v + 1] as usize]
