@@ -262,16 +262,23 @@ fn clip(poly: &mut Vec<Vec3>, tmp: &mut Vec<Vec3>, dist: &mut Vec<f64>, n: &Vec3
         return poly.len() >= 3;
     }
     tmp.clear();
-    let len = poly.len();
-    for i in 0..len {
-        let k = if i + 1 == len { 0 } else { i + 1 };
-        let (p, q, sp, sq) = (poly[i], poly[k], dist[i], dist[k]);
+    // Edge i runs from vertex i to i + 1 (the last one back to the first): what is kept of it,
+    // in that order.
+    let mut edge = |p: &Vec3, q: &Vec3, sp: f64, sq: f64| {
         if sp <= 0.0 {
-            tmp.push(p);
+            tmp.push(*p);
         }
         if (sp < 0.0 && sq > 0.0) || (sp > 0.0 && sq < 0.0) {
             tmp.push(p + (q - p) * (sp / (sp - sq)));
         }
+    };
+    for (pq, s) in poly.windows(2).zip(dist.windows(2)) {
+        edge(&pq[0], &pq[1], s[0], s[1]);
+    }
+    if let (Some(p), Some(q), Some(&sp), Some(&sq)) =
+        (poly.last(), poly.first(), dist.last(), dist.first())
+    {
+        edge(p, q, sp, sq);
     }
     std::mem::swap(poly, tmp);
     poly.len() >= 3
