@@ -7,6 +7,11 @@
 #       cloud) settled with a soft kn = 5e3 N/m (about the stiffness of Yade's volumetric law at
 #       its overlaps) at 0.5 x the critical time step, until the unbalanced-force ratio is below
 #       1e-3: a dense bed at rest, 5-6 contacts per particle as the peer counts them.
+#   settle-peer.sh nine N OUT.jsonl
+#       The benchmark scene: the N-particle scene's falling cloud with every particle
+#       replaced by one of the nine templates (`polygen --faces 6..14 --seed 7`, the paper's)
+#       at its size, centroid and principal axes (`dem --templates`), settled as with soft.
+#       The bodies share nine shapes, as a specimen of the paper's does.
 #   settle-peer.sh abrade K IN.jsonl OUT.jsonl
 #       Every particle of a settled bed turned into its Ab_K hull in place (`dem --abrade K`),
 #       then settled again the same way for at most 0.5 s (the abraded particles are smaller:
@@ -19,7 +24,7 @@
 #       at kn = 1e8); even so the bed is still compacting at the end (0.3 ratio, docs/bench.md):
 #       settling at the paper's stiffness takes simulated time that costs hours.
 #
-# Progress and each stage's figures go to stderr; dem must be on PATH.
+# Progress and each stage's figures go to stderr; dem (and polygen for nine) must be on PATH.
 set -euo pipefail
 usage() { sed -n 's/^#   settle-peer.sh/usage: settle-peer.sh/p' "$0" >&2; exit 2; }
 mode=${1:-}
@@ -36,6 +41,16 @@ case $mode in
     [ -f "$peers/settled_${n}_state.txt" ] && start=(--peer-state "$peers/settled_${n}_state.txt")
     echo "settle-peer: $n particles at kn = 5e3 N/m" >&2
     dem --import-peer "$scene" "${start[@]}" "${soft[@]}" --time 4 > "$out.tmp"
+    ;;
+  nine)
+    [ $# -eq 2 ] || usage
+    n=$1 out=$2
+    scene=$peers/scene_$n.txt
+    [ -f "$scene" ] || { echo "settle-peer: no $scene (set PEERS=DIR)" >&2; exit 1; }
+    polygen --faces 6..14 --seed 7 > "$out.templates.obj"
+    echo "settle-peer: $n particles as the nine templates at kn = 5e3 N/m" >&2
+    dem --import-peer "$scene" --templates "$out.templates.obj" "${soft[@]}" --time 4 > "$out.tmp"
+    rm "$out.templates.obj"
     ;;
   abrade)
     [ $# -eq 3 ] || usage

@@ -1,6 +1,6 @@
 //! The dem tool: restart equality, thread determinism, bad scenes.
 
-use super::{ok, repo_file, run, run_env};
+use super::{fixture, ok, repo_file, run, run_env};
 
 #[test]
 fn restart_equals_the_uninterrupted_run_byte_for_byte() {
@@ -285,4 +285,78 @@ fn abrade_turns_a_scene_into_its_ab_k_hulls() {
     // The abraded scene runs.
     let state = ok("dem", &["--abrade", "1", "--steps", "200"], &scene);
     assert!(String::from_utf8_lossy(&state).contains("\"step\":200"));
+}
+
+/// A peer scene of three particles (tetrahedra 10, 20 and 30 mm across) in a box.
+const PEER_SCENE: &str = "# peer-scene v1\nbox 0.2 0.2 0.2\n\
+    0 4 0.01 0.05 0.05 0.05 4 0.01 0 0 0 0.01 0 0 0 0.01 -0.005 -0.005 -0.005\n\
+    1 4 0.02 0.15 0.05 0.05 4 0.02 0 0 0 0.02 0 0 0 0.02 -0.01 -0.01 -0.01\n\
+    2 4 0.03 0.05 0.15 0.05 4 0.03 0 0 0 0.03 0 0 0 0.03 -0.015 -0.015 -0.015\n";
+
+fn temp_file(name: &str, text: &[u8]) -> std::path::PathBuf {
+    let path = std::env::temp_dir().join(format!("dem-{}-{name}", std::process::id()));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn peer_scenes_take_shared_templates() {
+    let scene = temp_file("peer.txt", PEER_SCENE.as_bytes());
+    let templates = temp_file("nine.obj", &fixture("templates_seed7.obj"));
+    let (scene, templates) = (scene.to_str().unwrap(), templates.to_str().unwrap());
+    let own = String::from_utf8(ok("dem", &["--import-peer", scene, "--steps", "0"], b"")).unwrap();
+    let shared = String::from_utf8(ok(
+        "dem",
+        &[
+            "--import-peer",
+            scene,
+            "--templates",
+            templates,
+            "--steps",
+            "0",
+        ],
+        b"",
+    ))
+    .unwrap();
+    let shapes = |s: &str| {
+        s.lines()
+            .filter(|l| l.contains("\"type\":\"shape\""))
+            .count()
+    };
+    assert_eq!(shapes(&own), 3, "one shape per particle");
+    assert_eq!(shapes(&shared), 9, "the nine templates, shared");
+    assert!(shared.contains("\"shape\":2,"), "particle 2 is template 2");
+    // Bad templates: none, a flat object, and the flag without a peer scene.
+    let empty = temp_file("empty.obj", b"# nothing\n");
+    fails(
+        &[
+            "--import-peer",
+            scene,
+            "--templates",
+            empty.to_str().unwrap(),
+            "--steps",
+            "0",
+        ],
+        b"",
+        &["no objects"],
+    );
+    let flat = temp_file(
+        "flat.obj",
+        b"o flat\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4 3\nf 3 4 2 1\n",
+    );
+    fails(
+        &[
+            "--import-peer",
+            scene,
+            "--templates",
+            flat.to_str().unwrap(),
+            "--steps",
+            "0",
+        ],
+        b"",
+        &["object at line 1"],
+    );
+    let out = run("dem", &["--templates", templates, "--steps", "0"], b"");
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--import-peer"));
 }

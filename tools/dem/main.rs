@@ -16,6 +16,8 @@ Examples:
   dem --steps 20000 < examples/drop.jsonl > settled.jsonl
   dem --steps 1000 < settled.jsonl | dem --steps 1000 > a.jsonl   (same bytes as --steps 2000)
   dem --import-peer ../shared/peers/yade/scene_500.txt --steps 0 > scene500.jsonl
+  polygen --faces 6..14 --seed 7 > nine.obj
+  dem --import-peer ../shared/peers/yade/scene_2000.txt --templates nine.obj --steps 0 > t2000.jsonl
   dem --abrade 2 --steps 0 < examples/drop.jsonl > drop-ab2.jsonl   (the same scene as Ab_2 hulls)
   dem --abrade 3 --simplify 100 --steps 0 < examples/drop.jsonl      (Ab_3 hulls cut to 100 vertices)
   dem --time 0.3 --vtk out/drop --vtk-every 20000 < examples/drop.jsonl > /dev/null
@@ -82,6 +84,11 @@ struct Cli {
     /// With --import-peer: a settled state (id x y z qw qx qy qz) to start from
     #[arg(long, requires = "import_peer")]
     peer_state: Option<std::path::PathBuf>,
+    /// With --import-peer: an OBJ stream of T templates (e.g. `polygen --faces 6..14 --seed 7`);
+    /// particle i becomes template i mod T at the particle's equivalent-sphere diameter, centroid
+    /// and principal axes, so the bodies share T shapes (the nine-template scenes)
+    #[arg(long, value_name = "OBJ", requires = "import_peer")]
+    templates: Option<std::path::PathBuf>,
     /// Abrade every shape LEVELS times before running (Catmull-Clark, then the convex hull: the
     /// paper's Ab_LEVELS of the scene's shapes); bodies stay where they were and only shrink,
     /// contacts are found afresh, the energy audit restarts and the time step is recomputed
@@ -133,6 +140,28 @@ fn series_line(w: &World) -> SeriesLine {
     }
 }
 
+/// The templates of `--templates`: every object of an OBJ stream, as the shape of its hull.
+fn read_templates(
+    path: &std::path::Path,
+    input: impl std::io::BufRead,
+) -> anyhow::Result<Vec<shared::dem::shape::Shape>> {
+    let objects =
+        shared::obj::read_all(input).with_context(|| format!("reading {}", path.display()))?;
+    if objects.is_empty() {
+        bail!(
+            "{}: no objects (expected an OBJ stream of templates)",
+            path.display()
+        );
+    }
+    objects
+        .iter()
+        .map(|o| {
+            shared::dem::shape::Shape::from_mesh(&o.mesh)
+                .map_err(|e| anyhow::anyhow!("{}: object at line {}: {e}", path.display(), o.line))
+        })
+        .collect()
+}
+
 fn main() -> ExitCode {
     cli::run("dem", || run(Cli::parse()))
 }
@@ -146,7 +175,11 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 ))
             };
             let settled = args.peer_state.as_deref().map(open).transpose()?;
-            peer::read_peer_scene(open(path)?, settled)
+            let templates = match &args.templates {
+                Some(p) => Some(read_templates(p, open(p)?)?),
+                None => None,
+            };
+            peer::read_peer_scene(open(path)?, settled, templates.as_deref())
                 .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
         }
         None => state::read_world(cli::stdin())?,

@@ -23,17 +23,28 @@ fn err(line: usize, msg: impl Into<String>) -> String {
 /// A world from a peer scene; `settled` optionally moves the particles to a settled state.
 /// Each particle gets its own shape (the peer's particles are all different); `World::abrade`
 /// turns them into the paper's Ab_k of these I_P shapes.
+///
+/// With `templates`, particle `i` is not its own polyhedron but template `i mod T` (the nine
+/// templates of 6 to 14 faces match the peer's face counts `6 + i mod 9`), scaled to the
+/// particle's equivalent-sphere diameter `deq`, its centroid on the particle's and its
+/// principal axes along the particle's: the issue's benchmark scene (the nine templates, sizes
+/// 10-40 mm) in the peer's box and loose lattice. The bodies then share T shapes.
 pub fn read_peer_scene<R: BufRead, S: BufRead>(
     scene: R,
     settled: Option<S>,
+    templates: Option<&[Shape]>,
 ) -> Result<World, String> {
+    if templates.is_some_and(|t| t.is_empty()) {
+        return Err("no templates".into());
+    }
     let material = Material {
         wall_friction: 0.5,
         ..Default::default()
     };
     let mut world = World::new(material, Vec3::new(0.0, 0.0, -9.81));
     let mut boxed = None;
-    let mut particles: Vec<(Vec3, Vec<Vec3>)> = Vec::new();
+    // Centroid, equivalent-sphere diameter and world vertex offsets of each particle.
+    let mut particles: Vec<(Vec3, f64, Vec<Vec3>)> = Vec::new();
     for (k, line) in scene.lines().enumerate() {
         let n = k + 1;
         let line = line.map_err(|e| err(n, e.to_string()))?;
@@ -87,7 +98,10 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
         let verts = (0..nv)
             .map(|i| Vec3::new(nums[7 + 3 * i], nums[8 + 3 * i], nums[9 + 3 * i]))
             .collect();
-        particles.push((centre, verts));
+        if nums[2] <= 0.0 {
+            return Err(err(n, format!("particle {id}: deq must be positive")));
+        }
+        particles.push((centre, nums[2], verts));
     }
     let size = boxed.ok_or("the scene has no 'box Lx Ly Lz' line")?;
     let walls = [
@@ -100,7 +114,7 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
     world.walls = walls.iter().map(|&(p, n)| Wall::plane(p, n)).collect();
     let mut poses: Vec<(Vec3, UnitQuaternion<f64>)> = particles
         .iter()
-        .map(|(c, _)| (*c, UnitQuaternion::identity()))
+        .map(|(c, _, _)| (*c, UnitQuaternion::identity()))
         .collect();
     if let Some(settled) = settled {
         let mut seen = 0;
@@ -133,7 +147,12 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
             ));
         }
     }
-    for (i, ((_, verts), (centre, q))) in particles.iter().zip(&poses).enumerate() {
+    if let Some(t) = templates {
+        for shape in t {
+            world.add_shape(shape.clone());
+        }
+    }
+    for (i, ((_, deq, verts), (centre, q))) in particles.iter().zip(&poses).enumerate() {
         let h = hull::convex_hull(verts).map_err(|e| format!("particle {i}: {e}"))?;
         let mut mesh = h.mesh;
         mesh.name = format!("peer{i}");
@@ -142,10 +161,23 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
         // particle's offset frame; the pose maps offsets to the world.
         let pos = centre + q * shape.centroid_in_mesh;
         let rot = q * shape.frame_in_mesh;
-        let s = world.add_shape(shape);
-        world.add_body(s, 1.0, pos, rot);
+        match templates {
+            Some(t) => {
+                let k = i % t.len();
+                world.add_body(k as u32, deq / equivalent_diameter(&t[k]), pos, rot);
+            }
+            None => {
+                let s = world.add_shape(shape);
+                world.add_body(s, 1.0, pos, rot);
+            }
+        }
     }
     Ok(world)
+}
+
+/// The diameter of the sphere of a shape's volume (at scale 1).
+fn equivalent_diameter(s: &Shape) -> f64 {
+    (6.0 * s.volume / std::f64::consts::PI).cbrt()
 }
 
 #[cfg(test)]
@@ -156,7 +188,7 @@ mod tests {
 
     #[test]
     fn reads_a_scene_and_keeps_world_vertices() {
-        let w = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>).unwrap();
+        let w = read_peer_scene(SCENE.as_bytes(), None::<&[u8]>, None).unwrap();
         assert_eq!((w.bodies.len(), w.walls.len()), (1, 5));
         let b = &w.bodies[0];
         let posed = w.shapes[0].posed(&b.pos, &b.rot, b.scale);
@@ -172,7 +204,7 @@ mod tests {
     #[test]
     fn a_settled_pose_moves_and_turns() {
         let settled = "0 0.02 0.03 0.04 0 0 0 1\n"; // half a turn about z
-        let w = read_peer_scene(SCENE.as_bytes(), Some(settled.as_bytes())).unwrap();
+        let w = read_peer_scene(SCENE.as_bytes(), Some(settled.as_bytes()), None).unwrap();
         let b = &w.bodies[0];
         let posed = w.shapes[0].posed(&b.pos, &b.rot, b.scale);
         let v = Vec3::new(0.02 - 0.01, 0.03, 0.04); // (0.01, 0, 0) turned half a turn
@@ -180,17 +212,53 @@ mod tests {
     }
 
     #[test]
+    fn templates_replace_particles_at_their_size_and_place() {
+        let scene = "box 0.2 0.2 0.2\n\
+            0 4 0.01 0.05 0.05 0.05 4 0.01 0 0 0 0.01 0 0 0 0.01 -0.005 -0.005 -0.005\n\
+            1 4 0.02 0.15 0.05 0.05 4 0.01 0 0 0 0.01 0 0 0 0.01 -0.005 -0.005 -0.005\n\
+            2 4 0.03 0.05 0.15 0.05 4 0.01 0 0 0 0.01 0 0 0 0.01 -0.005 -0.005 -0.005\n";
+        let cube = Shape::from_mesh(&crate::mesh::cube(1.0)).unwrap();
+        let params = crate::polygen::Params {
+            faces: 8,
+            ..Default::default()
+        };
+        let octa =
+            Shape::from_mesh(&crate::polygen::generate(&params, 7, 0).unwrap().mesh).unwrap();
+        let w = read_peer_scene(scene.as_bytes(), None::<&[u8]>, Some(&[cube, octa])).unwrap();
+        assert_eq!(
+            (w.shapes.len(), w.bodies.len()),
+            (2, 3),
+            "the bodies share the templates"
+        );
+        for (i, (b, deq)) in w.bodies.iter().zip([0.01, 0.02, 0.03]).enumerate() {
+            assert_eq!(b.shape as usize, i % 2);
+            let v = w.shapes[b.shape as usize].volume * b.scale.powi(3);
+            let d = (6.0 * v / std::f64::consts::PI).cbrt();
+            assert!((d - deq).abs() < 1e-12 * deq, "body {i}: {d} for {deq}");
+        }
+        // The particle's centroid: the tetrahedron of offsets (0.01, 0, 0), ... has its
+        // centroid 0.00125 m from the listed point along each axis.
+        let c = Vec3::new(0.05, 0.05, 0.05) + Vec3::repeat(0.00125);
+        assert!((w.bodies[0].pos - c).norm() < 1e-12);
+        assert!(read_peer_scene(scene.as_bytes(), None::<&[u8]>, Some(&[]))
+            .unwrap_err()
+            .contains("no templates"));
+    }
+
+    #[test]
     fn bad_peer_input() {
         assert!(
-            read_peer_scene("0 4 0.01 0 0 0 4 1 2 3\n".as_bytes(), None::<&[u8]>)
+            read_peer_scene("0 4 0.01 0 0 0 4 1 2 3\n".as_bytes(), None::<&[u8]>, None)
                 .unwrap_err()
                 .contains("line 1")
         );
-        assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>)
+        assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>, None)
             .unwrap_err()
             .contains("box needs"));
-        assert!(read_peer_scene("# nothing\n".as_bytes(), None::<&[u8]>)
-            .unwrap_err()
-            .contains("no 'box"));
+        assert!(
+            read_peer_scene("# nothing\n".as_bytes(), None::<&[u8]>, None)
+                .unwrap_err()
+                .contains("no 'box")
+        );
     }
 }
