@@ -2,6 +2,8 @@
 # DEM engine throughput, side by side in one run, with 1 and 2 threads, on the peer benchmark's
 # scenes (../shared/peers/yade), each bed made once by pipelines/settle-peer.sh and kept in
 # out/bench/ (the first run takes about two hours; the beds' logs are kept beside them):
+# - the issue's scenes proper: the same clouds with every particle one of the nine templates
+#   (`dem --templates`, shared shapes as in a specimen), settled the same way, and as Ab_3;
 # - dense beds at rest, 5-6 contacts per particle (the issue's benchmark): 500 (from Yade's
 #   settled state), 2000 and 5000 particles (from the falling clouds), settled with a soft
 #   kn = 5e3 N/m, and the same beds as Ab_3 hulls (`dem --abrade 3`, settled again). A step's
@@ -44,6 +46,17 @@ for n in "${sizes[@]}"; do
       "$out/ab3soft$n.jsonl"
   fi
 done
+# The issue's scenes proper: the nine templates, shared (`dem --templates`), in the peer's
+# boxes; NINE_SIZES picks the sizes (default 500 2000 5000), their Ab_3 beds unless AB3=0.
+nine=(${NINE_SIZES:-500 2000 5000})
+for n in "${nine[@]}"; do
+  make_bed "$out/nine$n.jsonl" "$n particles of the nine templates at kn = 5e3" nine "$n" \
+    "$out/nine$n.jsonl"
+  if [ "${AB3:-1}" = 1 ]; then
+    make_bed "$out/ab3nine$n.jsonl" "the same as Ab_3 hulls" abrade 3 "$out/nine$n.jsonl" \
+      "$out/ab3nine$n.jsonl"
+  fi
+done
 make_bed "$out/stiff500.jsonl" "the 500 bed at kn = 1e8" stiffen "$out/soft500.jsonl" \
   "$out/stiff500.jsonl"
 if [ "${AB3:-1}" = 1 ]; then
@@ -75,6 +88,14 @@ for n in "${sizes[@]}"; do
       row "$n bed of Ab_3 hulls, kn = 5e3 (ours)" "$th" --steps "$steps" < "$out/ab3soft$n.jsonl"
     done
   fi
+done
+for n in "${nine[@]}"; do
+  for bed in "nine$n:$n bed of the nine templates (ours)" "ab3nine$n:$n bed of their Ab_3 hulls (ours)"; do
+    [ -f "$out/${bed%%:*}.jsonl" ] || continue
+    for th in 1 2; do
+      row "${bed#*:}" "$th" --steps "$steps" < "$out/${bed%%:*}.jsonl"
+    done
+  done
 done
 # Speed against shape error: the 500 Ab_3 bed with its hulls cut to a vertex budget in place
 # (`dem --simplify N`: inside the full hulls, so a few contacts open; not settled again).
