@@ -417,12 +417,17 @@ fn clip_faces(
             }
         }
         // The box of what is left: a plane that holds it changes nothing.
-        let (mut flo, mut fhi) = (poly[0], poly[0]);
-        for p in &poly[1..] {
-            flo = flo.inf(p);
-            fhi = fhi.sup(p);
-        }
-        let coded_cuts = (0..coded).filter(|&k| any & (1 << (k + 8)) != 0);
+        let (flo, fhi) = polygon_box(poly);
+        // The coded planes some vertex lies outside of (the bits above the bounds' eight, in
+        // ascending order), then the uncoded ones.
+        let mut outside = any >> 8;
+        let coded_cuts = std::iter::from_fn(|| {
+            (outside != 0).then(|| {
+                let k = outside.trailing_zeros() as usize;
+                outside &= outside - 1;
+                k
+            })
+        });
         for k in coded_cuts.chain(coded..cuts.len()) {
             let j = cuts[k];
             let (m, d) = plane(j);
@@ -438,6 +443,22 @@ fn clip_faces(
             acc.cap_a = area;
         }
     }
+}
+
+/// The bounding box of a (non-empty) polygon.
+fn polygon_box(poly: &[Vec3]) -> (Vec3, Vec3) {
+    let (mut lo, mut hi) = (poly[0], poly[0]);
+    for p in &poly[1..] {
+        for k in 0..3 {
+            if p[k] < lo[k] {
+                lo[k] = p[k];
+            }
+            if p[k] > hi[k] {
+                hi[k] = p[k];
+            }
+        }
+    }
+    (lo, hi)
 }
 
 /// The faces of `s` around the vertices `reach`, ascending, into `out`.
