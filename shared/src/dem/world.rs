@@ -190,8 +190,8 @@ pub struct World {
     /// For body pairs whose boxes overlapped last step while the bodies did not: the direction
     /// that proved the gap and the supports it ended on, where this step's proof starts. Only
     /// speed depends on it (the proof is exact beyond round-off, see `overlap::apart`), so it
-    /// is not part of the state.
-    separations: BTreeMap<(u32, u32), (Vec3, Hints)>,
+    /// is not part of the state. Ascending by pair (the candidate pairs' order).
+    separations: Vec<((u32, u32), (Vec3, Hints))>,
     /// Scratch of the broad phase, kept between steps for its buffers: the posed bodies and
     /// the sweep order. Not part of the state (rebuilt every step).
     posed: Vec<Posed>,
@@ -256,7 +256,7 @@ impl World {
             contacts: BTreeMap::new(),
             energy: Energy::default(),
             unbalanced: f64::INFINITY,
-            separations: BTreeMap::new(),
+            separations: Vec::new(),
             posed: Vec::new(),
             sweep_order: Vec::new(),
             times: StepTimes::default(),
@@ -569,9 +569,8 @@ impl World {
                     let line = centre_line(pi, pj);
                     let (start, mut hints) = self
                         .separations
-                        .get(&(i, j))
-                        .copied()
-                        .unwrap_or((line, Hints::default()));
+                        .binary_search_by_key(&(i, j), |e| e.0)
+                        .map_or((line, Hints::default()), |k| self.separations[k].1);
                     if let Some(axis) = gap_axis(si, pi, sj, pj, &start, &mut hints) {
                         return Some(Outcome::Apart(i, j, axis, hints));
                     }
@@ -587,16 +586,15 @@ impl World {
             )))
         });
         let mut touches = Vec::with_capacity(outcomes.len());
-        let mut separations = BTreeMap::new();
+        self.separations.clear();
         for outcome in outcomes {
             match outcome {
                 Outcome::Touch(t) => touches.push(t),
                 Outcome::Apart(i, j, axis, hints) => {
-                    separations.insert((i, j), (axis, hints));
+                    self.separations.push(((i, j), (axis, hints)));
                 }
             }
         }
-        self.separations = separations;
         self.times.narrow += lap();
         let this = &*self;
         let wall_pairs: Vec<(u32, u32)> = (0..this.bodies.len() as u32)
