@@ -252,6 +252,13 @@ mod tests {
                 .unwrap_err()
                 .contains("line 1")
         );
+        assert!(read_peer_scene(
+            "box 1 1 1\n0 4 0 0 0 0 4 1 0 0 0 1 0 0 0 1 0 0 0\n".as_bytes(),
+            None::<&[u8]>,
+            None
+        )
+        .unwrap_err()
+        .contains("line 2: particle 0: deq must be positive"));
         assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>, None)
             .unwrap_err()
             .contains("box needs"));
