@@ -63,6 +63,10 @@ if [ "${AB3:-1}" = 1 ]; then
   make_bed "$out/ab3stiff500.jsonl" "its Ab_3 bed at kn = 1e8" stiffen "$out/ab3soft500.jsonl" \
     "$out/ab3stiff500.jsonl"
 fi
+if [ -f "$out/nine500.jsonl" ]; then
+  make_bed "$out/stiffnine500.jsonl" "the nine-template 500 bed at kn = 1e8" stiffen \
+    "$out/nine500.jsonl" "$out/stiffnine500.jsonl"
+fi
 # Yade on the same machine in the same run, when it is installed: its own settled 500 bed
 # (the peer README's recipe, about 16 minutes once), then the same timed steps from it.
 yade_state=$out/yade-settled500.xml.bz2
@@ -107,7 +111,8 @@ if [ -f "$out/ab3soft500.jsonl" ]; then
     done
   done
 fi
-for bed in "stiff500:500 bed at kn = 1e8 (ours)" "ab3stiff500:500 Ab_3 bed at kn = 1e8 (ours)"; do
+for bed in "stiff500:500 bed at kn = 1e8 (ours)" "ab3stiff500:500 Ab_3 bed at kn = 1e8 (ours)" \
+  "stiffnine500:500 nine-template bed at kn = 1e8"; do
   [ -f "$out/${bed%%:*}.jsonl" ] || continue
   for th in 1 2; do
     row "${bed#*:}" "$th" --steps "$steps" < "$out/${bed%%:*}.jsonl"
