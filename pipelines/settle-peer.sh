@@ -32,25 +32,22 @@ mode=${1:-}
 peers=${PEERS:-../shared/peers/yade}
 soft=(--kn 5e3 --ks 2.5e3 --safety 0.5 --until-unbalanced 1e-3)
 case $mode in
-  soft)
+  soft | nine)
     [ $# -eq 2 ] || usage
     n=$1 out=$2
     scene=$peers/scene_$n.txt
     [ -f "$scene" ] || { echo "settle-peer: no $scene (set PEERS=DIR)" >&2; exit 1; }
     start=()
-    [ -f "$peers/settled_${n}_state.txt" ] && start=(--peer-state "$peers/settled_${n}_state.txt")
-    echo "settle-peer: $n particles at kn = 5e3 N/m" >&2
+    if [ "$mode" = nine ]; then
+      polygen --faces 6..14 --seed 7 > "$out.templates.obj"
+      start=(--templates "$out.templates.obj")
+      echo "settle-peer: $n particles as the nine templates at kn = 5e3 N/m" >&2
+    else
+      [ -f "$peers/settled_${n}_state.txt" ] && start=(--peer-state "$peers/settled_${n}_state.txt")
+      echo "settle-peer: $n particles at kn = 5e3 N/m" >&2
+    fi
     dem --import-peer "$scene" "${start[@]}" "${soft[@]}" --time 4 > "$out.tmp"
-    ;;
-  nine)
-    [ $# -eq 2 ] || usage
-    n=$1 out=$2
-    scene=$peers/scene_$n.txt
-    [ -f "$scene" ] || { echo "settle-peer: no $scene (set PEERS=DIR)" >&2; exit 1; }
-    polygen --faces 6..14 --seed 7 > "$out.templates.obj"
-    echo "settle-peer: $n particles as the nine templates at kn = 5e3 N/m" >&2
-    dem --import-peer "$scene" --templates "$out.templates.obj" "${soft[@]}" --time 4 > "$out.tmp"
-    rm "$out.templates.obj"
+    rm -f "$out.templates.obj"
     ;;
   abrade)
     [ $# -eq 3 ] || usage

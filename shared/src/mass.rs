@@ -93,8 +93,13 @@ impl MassProps {
 
     /// Diameter of the sphere of the same volume.
     pub fn equivalent_diameter(&self) -> f64 {
-        (6.0 * self.volume.abs() / std::f64::consts::PI).cbrt()
+        equivalent_diameter(self.volume)
     }
+}
+
+/// Diameter of the sphere of volume `|volume|`.
+pub fn equivalent_diameter(volume: f64) -> f64 {
+    (6.0 * volume.abs() / std::f64::consts::PI).cbrt()
 }
 
 /// Barrett's roundness from volume and area.

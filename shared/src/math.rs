@@ -13,14 +13,21 @@ pub fn unit_f64(bits: u64) -> f64 {
     (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
-/// Axis-aligned bounding box of points: (min, max). `None` for no points.
+/// Axis-aligned bounding box of points: (min, max). `None` for no points. Plain comparisons
+/// per coordinate (nalgebra's `inf`/`sup` cost several times more in the contact loop).
 pub fn bounding_box(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
-    let first = *points.first()?;
-    Some(
-        points
-            .iter()
-            .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))),
-    )
+    let (mut lo, mut hi) = (*points.first()?, points[0]);
+    for p in &points[1..] {
+        for k in 0..3 {
+            if p[k] < lo[k] {
+                lo[k] = p[k];
+            }
+            if p[k] > hi[k] {
+                hi[k] = p[k];
+            }
+        }
+    }
+    Some((lo, hi))
 }
 
 /// Length of the bounding-box diagonal (0 for no points): the scale that relative tolerances use.

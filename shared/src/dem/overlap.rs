@@ -21,7 +21,7 @@
 
 use super::gjk::{separating_axis, Hints, Points};
 use super::shape::{Posed, Shape};
-use crate::math::Vec3;
+use crate::math::{bounding_box, Vec3};
 
 /// The overlap of two bodies: volume, centroid, and `S_B` (area vector of B's surface inside A,
 /// outward from B). `normal()` points from A to B.
@@ -401,13 +401,8 @@ fn clip_faces(
             let (m, d) = plane(j);
             !x_is_b && coplanar(m, *d, n, *xd, size)
         };
-        let mut bits = all;
-        while bits != 0 {
-            let k = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            if k < 8 || !keeps(cuts[k - 8]) {
-                continue 'faces; // wholly outside one plane
-            }
+        if set_bits(all).any(|k| k < 8 || !keeps(cuts[k - 8])) {
+            continue 'faces; // wholly outside one plane
         }
         poly.clear();
         poly.extend(idx.iter().map(|&i| x.vertices[i as usize]));
@@ -417,18 +412,12 @@ fn clip_faces(
             }
         }
         // The box of what is left: a plane that holds it changes nothing.
-        let (flo, fhi) = polygon_box(poly);
-        // The coded planes some vertex lies outside of (the bits above the bounds' eight, in
-        // ascending order), then the uncoded ones.
-        let mut outside = any >> 8;
-        let coded_cuts = std::iter::from_fn(|| {
-            (outside != 0).then(|| {
-                let k = outside.trailing_zeros() as usize;
-                outside &= outside - 1;
-                k
-            })
-        });
-        for k in coded_cuts.chain(coded..cuts.len()) {
+        let Some((flo, fhi)) = bounding_box(poly) else {
+            continue 'faces;
+        };
+        // The coded planes some vertex lies outside of (the bits above the bounds' eight), then
+        // the uncoded ones.
+        for k in set_bits(any >> 8).chain(coded..cuts.len()) {
             let j = cuts[k];
             let (m, d) = plane(j);
             if box_excess(m, *d, &flo, &fhi) <= 0.0 || keeps(j) {
@@ -445,20 +434,15 @@ fn clip_faces(
     }
 }
 
-/// The bounding box of a (non-empty) polygon.
-fn polygon_box(poly: &[Vec3]) -> (Vec3, Vec3) {
-    let (mut lo, mut hi) = (poly[0], poly[0]);
-    for p in &poly[1..] {
-        for k in 0..3 {
-            if p[k] < lo[k] {
-                lo[k] = p[k];
-            }
-            if p[k] > hi[k] {
-                hi[k] = p[k];
-            }
-        }
-    }
-    (lo, hi)
+/// The positions of the set bits of `bits`, ascending.
+fn set_bits(mut bits: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (bits != 0).then(|| {
+            let k = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            k
+        })
+    })
 }
 
 /// The faces of `s` around the vertices `reach`, ascending, into `out`.

@@ -12,6 +12,7 @@ use super::shape::Shape;
 use super::wall::Wall;
 use super::world::{Material, World};
 use crate::hull;
+use crate::mass::equivalent_diameter;
 use crate::math::Vec3;
 use nalgebra::{Quaternion, UnitQuaternion};
 use std::io::BufRead;
@@ -164,7 +165,7 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
         match templates {
             Some(t) => {
                 let k = i % t.len();
-                world.add_body(k as u32, deq / equivalent_diameter(&t[k]), pos, rot);
+                world.add_body(k as u32, deq / equivalent_diameter(t[k].volume), pos, rot);
             }
             None => {
                 let s = world.add_shape(shape);
@@ -173,11 +174,6 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
         }
     }
     Ok(world)
-}
-
-/// The diameter of the sphere of a shape's volume (at scale 1).
-fn equivalent_diameter(s: &Shape) -> f64 {
-    (6.0 * s.volume / std::f64::consts::PI).cbrt()
 }
 
 #[cfg(test)]
@@ -232,8 +228,7 @@ mod tests {
         );
         for (i, (b, deq)) in w.bodies.iter().zip([0.01, 0.02, 0.03]).enumerate() {
             assert_eq!(b.shape as usize, i % 2);
-            let v = w.shapes[b.shape as usize].volume * b.scale.powi(3);
-            let d = (6.0 * v / std::f64::consts::PI).cbrt();
+            let d = equivalent_diameter(w.shapes[b.shape as usize].volume * b.scale.powi(3));
             assert!((d - deq).abs() < 1e-12 * deq, "body {i}: {d} for {deq}");
         }
         // The particle's centroid: the tetrahedron of offsets (0.01, 0, 0), ... has its
