@@ -16,11 +16,12 @@
 //!
 //! Determinism: contact forces are computed in parallel into a list in pair order; each body
 //! (in parallel) adds its own in that order, and sums over bodies are taken in body order;
-//! contacts live in a `BTreeMap`. Same bytes for any thread count.
+//! contacts are listed by key ([`Contacts`]). Same bytes for any thread count.
 //!
 //! Energy audit: kinetic + elastic (normal and shear springs) + friction and damping
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
 
+use super::contacts::Contacts;
 use super::gjk::Hints;
 use super::overlap::{centre_line, gap_axis, overlap_along, Overlap};
 use super::shape::{Posed, Remade, Shape};
@@ -28,7 +29,6 @@ use super::wall::Wall;
 use crate::math::Vec3;
 use nalgebra::{Unit, UnitQuaternion};
 use rayon::prelude::*;
-use std::collections::BTreeMap;
 
 /// Material and contact parameters (SI units). Defaults are the paper's Table 1.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -181,7 +181,7 @@ pub struct World {
     pub dt: f64,
     pub time: f64,
     pub step: u64,
-    pub contacts: BTreeMap<ContactKey, Contact>,
+    pub contacts: Contacts,
     pub energy: Energy,
     /// Unbalanced-force ratio of the last step: the mean over free bodies of the net force
     /// (gravity and contacts, before damping) over the mean contact force; infinite with no
@@ -190,8 +190,8 @@ pub struct World {
     /// For body pairs whose boxes overlapped last step while the bodies did not: the direction
     /// that proved the gap and the supports it ended on, where this step's proof starts. Only
     /// speed depends on it (the proof is exact beyond round-off, see `overlap::apart`), so it
-    /// is not part of the state. Ascending by pair (the candidate pairs' order).
-    separations: Vec<((u32, u32), (Vec3, Hints))>,
+    /// is not part of the state.
+    separations: Separations,
     /// Scratch of the broad phase, kept between steps for its buffers: the posed bodies and
     /// the sweep order. Not part of the state (rebuilt every step).
     posed: Vec<Posed>,
@@ -229,6 +229,27 @@ enum Outcome {
     Apart(u32, u32, Vec3, Hints),
 }
 
+/// Gap proofs of the last step, ascending by pair, in the chunks the narrow phase made them in
+/// (copying them into one list took 4 % of a step on 2 threads, most of it reading what the
+/// other core had written). No chunk is empty.
+#[derive(Clone, Debug, Default)]
+struct Separations(Vec<Vec<Gap>>);
+
+/// A pair `(i, j)` proven apart, the direction that proved it and the supports it ended on.
+type Gap = ((u32, u32), (Vec3, Hints));
+
+impl Separations {
+    /// The direction that proved the gap of pair `(i, j)` last step, and its supports.
+    fn get(&self, pair: (u32, u32)) -> Option<&(Vec3, Hints)> {
+        let k = self
+            .0
+            .partition_point(|chunk| chunk.last().is_some_and(|last| last.0 < pair));
+        let chunk = self.0.get(k)?;
+        let e = chunk.binary_search_by_key(&pair, |e| e.0).ok()?;
+        Some(&chunk[e].1)
+    }
+}
+
 /// What the narrow phase hands back for one touching pair.
 struct Touch {
     key: ContactKey,
@@ -253,10 +274,10 @@ impl World {
             dt: 0.0,
             time: 0.0,
             step: 0,
-            contacts: BTreeMap::new(),
+            contacts: Contacts::new(),
             energy: Energy::default(),
             unbalanced: f64::INFINITY,
-            separations: Vec::new(),
+            separations: Separations::default(),
             posed: Vec::new(),
             sweep_order: Vec::new(),
             times: StepTimes::default(),
@@ -345,7 +366,7 @@ impl World {
                 .transform_vector(&body_omega.component_mul(&b.moments));
         }
         self.contacts.clear();
-        self.separations.clear();
+        self.separations = Separations::default();
         self.energy = Energy {
             kinetic: self.bodies.iter().map(Body::kinetic_energy).sum(),
             ..Energy::default()
@@ -550,7 +571,7 @@ impl World {
         let pairs = Self::candidate_pairs(&posed, &mut self.sweep_order);
         self.times.broad += lap();
         let par = self.bodies.len() >= PARALLEL_MIN_BODIES;
-        let outcomes: Vec<Outcome> = filter_map_maybe_par(&pairs, par, |&(i, j)| {
+        let narrow = |&(i, j): &(u32, u32)| {
             let (bi, bj) = (&self.bodies[i as usize], &self.bodies[j as usize]);
             if bi.fixed && bj.fixed {
                 return None;
@@ -569,8 +590,9 @@ impl World {
                     let line = centre_line(pi, pj);
                     let (start, mut hints) = self
                         .separations
-                        .binary_search_by_key(&(i, j), |e| e.0)
-                        .map_or((line, Hints::default()), |k| self.separations[k].1);
+                        .get((i, j))
+                        .copied()
+                        .unwrap_or((line, Hints::default()));
                     if let Some(axis) = gap_axis(si, pi, sj, pj, &start, &mut hints) {
                         return Some(Outcome::Apart(i, j, axis, hints));
                     }
@@ -584,21 +606,34 @@ impl World {
                 va,
                 self.material.friction,
             )))
-        });
-        let mut touches = Vec::with_capacity(outcomes.len());
-        self.separations.clear();
-        for outcome in outcomes {
-            match outcome {
-                Outcome::Touch(t) => touches.push(t),
-                Outcome::Apart(i, j, axis, hints) => {
-                    self.separations.push(((i, j), (axis, hints)));
+        };
+        // Each chunk of pairs keeps its own touches and gaps, so no thread copies another's
+        // results into one list (that copy was 4 % of a step on 2 threads): the touches are
+        // then referenced in pair order.
+        let mut chunks = map_chunks_maybe_par(&pairs, par, |chunk| {
+            let (mut touches, mut apart) = (Vec::new(), Vec::new());
+            for outcome in chunk.iter().filter_map(narrow) {
+                match outcome {
+                    Outcome::Touch(t) => touches.push(t),
+                    Outcome::Apart(i, j, axis, hints) => apart.push(((i, j), (axis, hints))),
                 }
             }
-        }
+            (touches, apart)
+        });
+        self.separations = Separations(
+            chunks
+                .iter_mut()
+                .map(|(_, apart)| std::mem::take(apart))
+                .filter(|apart| !apart.is_empty())
+                .collect(),
+        );
+        let mut touches: Vec<&Touch> = chunks.iter().flat_map(|(t, _)| t).collect();
         self.times.narrow += lap();
         let this = &*self;
-        let wall_pairs: Vec<(u32, u32)> = (0..this.bodies.len() as u32)
-            .flat_map(|i| (0..this.walls.len() as u32).map(move |w| (i, w)))
+        // By wall, then body: the order of the contact keys, so the touches come out sorted.
+        // (A body still adds its wall contacts by ascending wall, as each wall its bodies.)
+        let wall_pairs: Vec<(u32, u32)> = (0..this.walls.len() as u32)
+            .flat_map(|w| (0..this.bodies.len() as u32).map(move |i| (i, w)))
             .collect();
         let wall_touches: Vec<Touch> = filter_map_maybe_par(&wall_pairs, par, |&(i, w)| {
             let b = &this.bodies[i as usize];
@@ -617,7 +652,7 @@ impl World {
             t.node_weights = hit.node_weights;
             Some(t)
         });
-        touches.extend(wall_touches);
+        touches.extend(&wall_touches);
         self.times.walls += lap();
         // Forces in a fixed order: each body adds its contacts in the order of `touches`
         // (the order of a serial loop over them), on any number of threads.
@@ -669,7 +704,7 @@ impl World {
             self.energy.friction += t.slip_energy;
         }
         let mean_contact_force = contact_force / touches.len() as f64;
-        self.contacts = touches.into_iter().map(|t| (t.key, t.contact)).collect();
+        self.contacts = Contacts::from_sorted(&touches, par, |t| t.key, |t| t.contact.clone());
         self.energy.elastic = elastic;
         self.energy.wall_work += wall_power * dt;
         self.times.assembly += lap();
@@ -733,7 +768,7 @@ impl World {
 /// Each body's contact ends as compressed rows, in the order of `touches`: body `i`'s are
 /// `ends[start[i]..start[i + 1]]`, each a touch index times 2, plus 1 for the body taking the
 /// force with a minus sign (body A of a pair).
-fn ends_by_body(touches: &[Touch], bodies: usize) -> (Vec<u32>, Vec<u32>) {
+fn ends_by_body(touches: &[&Touch], bodies: usize) -> (Vec<u32>, Vec<u32>) {
     let partner = |t: &Touch| match t.key.0 {
         Partner::Body(a) => Some(a as usize),
         Partner::Wall(_) => None,
@@ -766,6 +801,21 @@ fn ends_by_body(touches: &[Touch], bodies: usize) -> (Vec<u32>, Vec<u32>) {
 /// Below this many bodies a step runs on one thread: waking the pool every step costs more
 /// than the work (measured: 6 bodies spent 3.5 s of system time per second of work).
 pub const PARALLEL_MIN_BODIES: usize = 64;
+
+/// `f` over `items` in chunks of 256 (in parallel when `par`), the chunks' results in item
+/// order on any number of threads.
+fn map_chunks_maybe_par<T: Sync, U: Send>(
+    items: &[T],
+    par: bool,
+    f: impl Fn(&[T]) -> U + Sync + Send,
+) -> Vec<U> {
+    const CHUNK: usize = 256;
+    if par {
+        items.par_chunks(CHUNK).map(f).collect()
+    } else {
+        items.chunks(CHUNK).map(f).collect()
+    }
+}
 
 /// `filter_map` over `items`, in parallel when `par`; the result is in item order either way.
 fn filter_map_maybe_par<T: Sync, U: Send>(

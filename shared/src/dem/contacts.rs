@@ -1,0 +1,183 @@
+//! The contact list of a world: contacts sorted by key, keys and contacts in two arrays.
+//!
+//! A step builds its contacts in key order (body pairs ascending, then wall contacts by wall
+//! and body), so the list is rebuilt by a parallel copy instead of a tree's serial inserts, and
+//! a lookup is a binary search over the keys alone (8 bytes each, so most of the search stays in
+//! cache). On a 2000-particle bed the `BTreeMap` this replaces took 4 to 5 % of a step on 2
+//! threads, all of it serial.
+
+use super::world::{Contact, ContactKey};
+use rayon::prelude::*;
+
+/// Contacts by key, ascending. Iterates like a map: `for (key, contact) in &contacts`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Contacts {
+    keys: Vec<ContactKey>,
+    values: Vec<Contact>,
+}
+
+impl Contacts {
+    pub fn new() -> Contacts {
+        Contacts::default()
+    }
+
+    /// The list from `(key, contact)` items already in ascending key order, each key once.
+    /// Copies in parallel when `par`.
+    ///
+    /// # Panics
+    /// If the keys are not strictly ascending: a step that builds them otherwise is a bug.
+    pub fn from_sorted<T: Sync>(
+        items: &[T],
+        par: bool,
+        key: impl Fn(&T) -> ContactKey + Sync + Send,
+        contact: impl Fn(&T) -> Contact + Sync + Send,
+    ) -> Contacts {
+        let (keys, values): (Vec<ContactKey>, Vec<Contact>) = if par {
+            (
+                items.par_iter().map(&key).collect(),
+                items.par_iter().map(&contact).collect(),
+            )
+        } else {
+            (
+                items.iter().map(&key).collect(),
+                items.iter().map(&contact).collect(),
+            )
+        };
+        assert!(
+            keys.windows(2).all(|w| w[0] < w[1]),
+            "contacts must be built in strictly ascending key order"
+        );
+        Contacts { keys, values }
+    }
+
+    pub fn len(&self) -> usize {
+        self.keys.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.keys.is_empty()
+    }
+
+    pub fn clear(&mut self) {
+        self.keys.clear();
+        self.values.clear();
+    }
+
+    pub fn get(&self, key: &ContactKey) -> Option<&Contact> {
+        self.keys.binary_search(key).ok().map(|k| &self.values[k])
+    }
+
+    pub fn contains_key(&self, key: &ContactKey) -> bool {
+        self.keys.binary_search(key).is_ok()
+    }
+
+    /// Inserts or replaces the contact of `key`, returning the one it replaced.
+    pub fn insert(&mut self, key: ContactKey, contact: Contact) -> Option<Contact> {
+        match self.keys.binary_search(&key) {
+            Ok(k) => Some(std::mem::replace(&mut self.values[k], contact)),
+            Err(k) => {
+                self.keys.insert(k, key);
+                self.values.insert(k, contact);
+                None
+            }
+        }
+    }
+
+    pub fn keys(&self) -> std::slice::Iter<'_, ContactKey> {
+        self.keys.iter()
+    }
+
+    pub fn values(&self) -> std::slice::Iter<'_, Contact> {
+        self.values.iter()
+    }
+
+    pub fn values_mut(&mut self) -> std::slice::IterMut<'_, Contact> {
+        self.values.iter_mut()
+    }
+
+    pub fn iter(&self) -> <&Contacts as IntoIterator>::IntoIter {
+        self.into_iter()
+    }
+}
+
+impl<'a> IntoIterator for &'a Contacts {
+    type Item = (&'a ContactKey, &'a Contact);
+    type IntoIter = std::iter::Zip<std::slice::Iter<'a, ContactKey>, std::slice::Iter<'a, Contact>>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.keys.iter().zip(self.values.iter())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dem::world::Partner;
+    use crate::math::Vec3;
+
+    fn contact(depth: f64) -> Contact {
+        Contact {
+            normal: Vec3::z(),
+            point: Vec3::zeros(),
+            depth,
+            normal_force: 0.0,
+            potential: 0.0,
+            shear: Vec3::zeros(),
+            sliding: false,
+        }
+    }
+
+    #[test]
+    fn inserts_keep_the_keys_ascending_and_replace_a_known_key() {
+        let mut c = Contacts::new();
+        let keys = [
+            (Partner::Wall(1), 0),
+            (Partner::Body(2), 5),
+            (Partner::Wall(0), 3),
+            (Partner::Body(0), 7),
+            (Partner::Body(2), 3),
+        ];
+        for (n, k) in keys.iter().enumerate() {
+            assert!(c.insert(*k, contact(n as f64)).is_none());
+        }
+        let old = c.insert((Partner::Body(2), 5), contact(9.0));
+        assert_eq!(old.map(|o| o.depth), Some(1.0));
+        let got: Vec<_> = c.iter().map(|(k, v)| (*k, v.depth)).collect();
+        assert_eq!(
+            got,
+            vec![
+                ((Partner::Body(0), 7), 3.0),
+                ((Partner::Body(2), 3), 4.0),
+                ((Partner::Body(2), 5), 9.0),
+                ((Partner::Wall(0), 3), 2.0),
+                ((Partner::Wall(1), 0), 0.0),
+            ]
+        );
+        assert_eq!(c.get(&(Partner::Wall(0), 3)).map(|v| v.depth), Some(2.0));
+        assert!(c.get(&(Partner::Wall(0), 4)).is_none());
+        assert!(c.contains_key(&(Partner::Body(0), 7)));
+    }
+
+    #[test]
+    fn a_list_built_in_parallel_equals_the_serial_one() {
+        let items: Vec<(ContactKey, f64)> = (0..500u32)
+            .map(|i| ((Partner::Body(i / 7), i), i as f64))
+            .chain((0..300u32).map(|i| ((Partner::Wall(i / 100), i), -(i as f64))))
+            .collect();
+        let build = |par| Contacts::from_sorted(&items, par, |t| t.0, |t| contact(t.1));
+        let (a, b) = (build(true), build(false));
+        assert_eq!(a, b);
+        assert_eq!(a.len(), 800);
+        assert_eq!(
+            a.get(&(Partner::Wall(2), 250)).map(|v| v.depth),
+            Some(-250.0)
+        );
+    }
+
+    #[test]
+    #[should_panic(expected = "ascending key order")]
+    fn a_list_out_of_key_order_is_refused() {
+        let items = [(Partner::Wall(0), 1u32), (Partner::Body(3), 0)];
+        Contacts::from_sorted(&items, false, |k| *k, |_| contact(0.0));
+    }
+}
