@@ -333,6 +333,11 @@ fn run(args: Cli) -> anyhow::Result<()> {
             share(t.assembly),
             share(t.integration)
         );
+        eprintln!(
+            "dem: broad phase swept {} times in {} steps (its kept list served the others)",
+            world.broad_sweeps(),
+            steps
+        );
         if let Some(kib) = peak_resident_kib() {
             eprintln!(
                 "dem: peak resident memory {:.1} MiB ({:.1} KiB per particle, all included)",

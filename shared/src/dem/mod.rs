@@ -9,6 +9,7 @@
 //! - [`vtk`]: snapshots for ParaView.
 //! - [`wall`]: planes, facets with moving nodes, cylinders.
 
+pub mod broad;
 pub mod contacts;
 pub mod gjk;
 pub mod overlap;

@@ -21,6 +21,7 @@
 //! Energy audit: kinetic + elastic (normal and shear springs) + friction and damping
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
 
+use super::broad::{Aabb, Broad};
 use super::contacts::Contacts;
 use super::gjk::Hints;
 use super::overlap::{centre_line, gap_axis, overlap_along, Overlap};
@@ -192,10 +193,10 @@ pub struct World {
     /// speed depends on it (the proof is exact beyond round-off, see `overlap::apart`), so it
     /// is not part of the state.
     separations: Separations,
-    /// Scratch of the broad phase, kept between steps for its buffers: the posed bodies and
-    /// the sweep order. Not part of the state (rebuilt every step).
+    /// Scratch of the broad phase, kept between steps: the posed bodies (for their buffers)
+    /// and the kept list of pairs. Not part of the state (only speed depends on it).
     posed: Vec<Posed>,
-    sweep_order: Vec<u32>,
+    broad: Broad,
     /// Wall-clock seconds spent in each part of [`World::step`] so far (not part of the state).
     pub times: StepTimes,
 }
@@ -279,7 +280,7 @@ impl World {
             unbalanced: f64::INFINITY,
             separations: Separations::default(),
             posed: Vec::new(),
-            sweep_order: Vec::new(),
+            broad: Broad::default(),
             times: StepTimes::default(),
         }
     }
@@ -432,65 +433,10 @@ impl World {
         }
     }
 
-    /// Candidate body pairs (i < j) whose bounding boxes overlap, ascending: sweep and prune
-    /// along the axis on which the box centres spread most (z for a tall falling cloud, where
-    /// x would pair every body with a tenth of the others). `order` is the last sweep's order
-    /// (nearly sorted again: cheap to sort). Which axis is swept changes the cost, not the pairs.
-    fn candidate_pairs(posed: &[Posed], order: &mut Vec<u32>) -> Vec<(u32, u32)> {
-        if order.len() != posed.len() {
-            *order = (0..posed.len() as u32).collect();
-        }
-        let n = posed.len().max(1) as f64;
-        let centre = |p: &Posed| (p.lo + p.hi) * 0.5;
-        let mean = posed.iter().map(centre).sum::<Vec3>() / n;
-        let spread = posed
-            .iter()
-            .map(|p| (centre(p) - mean).map(|c| c * c))
-            .sum::<Vec3>();
-        let s = spread.imax();
-        let (t, u) = ((s + 1) % 3, (s + 2) % 3);
-        order.sort_by(|&a, &b| {
-            posed[a as usize].lo[s]
-                .total_cmp(&posed[b as usize].lo[s])
-                .then(a.cmp(&b))
-        });
-        // Each body against those after it along the axis, in blocks of the order (in parallel
-        // for many bodies); the pairs come out sorted either way.
-        const BLOCK: usize = 64;
-        let order = &order[..];
-        let block = |(k0, chunk): (usize, &[u32])| {
-            let mut pairs = Vec::new();
-            for (k, &i) in chunk.iter().enumerate() {
-                let a = &posed[i as usize];
-                for &j in &order[k0 * BLOCK + k + 1..] {
-                    let b = &posed[j as usize];
-                    if b.lo[s] > a.hi[s] {
-                        break;
-                    }
-                    if a.lo[t] <= b.hi[t]
-                        && b.lo[t] <= a.hi[t]
-                        && a.lo[u] <= b.hi[u]
-                        && b.lo[u] <= a.hi[u]
-                    {
-                        pairs.push((i.min(j), i.max(j)));
-                    }
-                }
-            }
-            pairs
-        };
-        let mut pairs: Vec<(u32, u32)>;
-        if order.len() >= PARALLEL_MIN_BODIES {
-            pairs = order
-                .par_chunks(BLOCK)
-                .enumerate()
-                .flat_map_iter(block)
-                .collect();
-            pairs.par_sort_unstable();
-        } else {
-            pairs = order.chunks(BLOCK).enumerate().flat_map(block).collect();
-            pairs.sort_unstable();
-        }
-        pairs
+    /// How many times the broad phase has swept all boxes since this world was made or read
+    /// (the other steps filtered its kept list of pairs; see [`super::broad`]).
+    pub fn broad_sweeps(&self) -> u64 {
+        self.broad.sweeps
     }
 
     /// Contact forces of one touching pair from its overlap.
@@ -568,9 +514,10 @@ impl World {
         };
         let mut posed = std::mem::take(&mut self.posed);
         self.pose_all(&mut posed);
-        let pairs = Self::candidate_pairs(&posed, &mut self.sweep_order);
-        self.times.broad += lap();
         let par = self.bodies.len() >= PARALLEL_MIN_BODIES;
+        let boxes: Vec<Aabb> = posed.iter().map(|p| (p.lo, p.hi)).collect();
+        let pairs = self.broad.pairs(&boxes, par);
+        self.times.broad += lap();
         let narrow = |&(i, j): &(u32, u32)| {
             let (bi, bj) = (&self.bodies[i as usize], &self.bodies[j as usize]);
             if bi.fixed && bj.fixed {
