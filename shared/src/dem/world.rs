@@ -808,3 +808,32 @@ pub fn free_rotation(rot: &mut UnitQuaternion<f64>, l: &Vec3, moments: &Vec3, dt
     }
     *rot = UnitQuaternion::new_normalize(*rot.quaternion());
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gap_proofs_are_found_across_their_chunks() {
+        let gap = |i: u32, j: u32| {
+            (
+                (i, j),
+                (Vec3::new(i as f64, j as f64, 0.0), Hints::default()),
+            )
+        };
+        let chunks = vec![
+            vec![gap(0, 1), gap(0, 5), gap(2, 3)],
+            vec![gap(2, 9)],
+            vec![gap(4, 5), gap(7, 8)],
+        ];
+        let all: Vec<Gap> = chunks.concat();
+        let s = Separations(chunks);
+        for (pair, (axis, _)) in &all {
+            assert_eq!(s.get(*pair).map(|g| g.0), Some(*axis), "{pair:?}");
+        }
+        for missing in [(0, 0), (0, 2), (2, 4), (3, 0), (4, 4), (7, 9), (9, 9)] {
+            assert!(s.get(missing).is_none(), "{missing:?}");
+        }
+        assert!(Separations::default().get((0, 1)).is_none());
+    }
+}
