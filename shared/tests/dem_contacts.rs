@@ -4,7 +4,7 @@
 
 use nalgebra::UnitQuaternion;
 use rand::{RngCore, SeedableRng};
-use shared::dem::overlap::{gap_axis, overlap, overlap_along, overlap_half_space};
+use shared::dem::overlap::{gap_proof, overlap, overlap_along, overlap_half_space};
 use shared::dem::shape::{Posed, Shape};
 use shared::math::{unit_f64, Vec3};
 use shared::mesh::cube;
@@ -425,18 +425,28 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
             let scanned = overlap_along(&scanning[i], &a, &scanning[j], &b, &axis);
             assert_eq!(climbed, scanned, "trial {trial}, axis {axis:?}");
             // The gap proof with climbed supports: only ever for bodies apart (checked by a
-            // full scan along the direction it hands back), and as often as with scans.
-            let proof = gap_axis(&large[i], &a, &large[j], &b, &axis, &mut Default::default());
-            if let Some(d) = proof {
+            // full scan along the direction it hands back), by at least its spare distance
+            // (what the engine lets the bodies move before proving it again), and as often
+            // as with scans.
+            let proof = gap_proof(&large[i], &a, &large[j], &b, &axis, &mut Default::default());
+            if let Some(p) = proof {
+                let d = p.axis.normalize();
                 let top_a = a.vertices.iter().map(|v| d.dot(v)).fold(f64::MIN, f64::max);
                 let low_b = b.vertices.iter().map(|v| d.dot(v)).fold(f64::MAX, f64::min);
                 assert!(
                     top_a < low_b,
                     "trial {trial}: gap proof for touching bodies"
                 );
+                assert!(p.spare > 0.0, "trial {trial}: spare {}", p.spare);
+                let gap = low_b - top_a;
+                assert!(
+                    gap >= p.spare * (1.0 - 1e-9),
+                    "trial {trial}: gap {gap} below the spare {}",
+                    p.spare
+                );
                 assert!(scanned.is_none());
             }
-            let scan_proof = gap_axis(
+            let scan_proof = gap_proof(
                 &scanning[i],
                 &a,
                 &scanning[j],

@@ -90,24 +90,25 @@ pub fn separated(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> bool {
         },
     );
     let mut hints = Hints::default();
-    a.is_empty() || b.is_empty() || separating_axis(pa, pb, start, margin, &mut hints).is_some()
+    a.is_empty() || b.is_empty() || separating_gap(pa, pb, start, margin, &mut hints).is_some()
 }
 
 /// Where the climbs of A's and B's supports start (climbing hulls only), and where they ended:
 /// kept for the same pair's next test, whose supports then lie a step or two away.
 pub type Hints = [Option<usize>; 2];
 
-/// [`separated`] that also hands back the direction that proved the gap: the best start for
-/// the same pair's next test, a step later (bodies move little, so it usually proves the gap
-/// again with one support evaluation). `None` when no gap above `margin` was proven. The
+/// [`separated`] that also hands back the direction that proved the gap, and the gap: A lies
+/// that far below B along the direction (more than `margin`). The direction is the best start
+/// for the same pair's next test, a step later (bodies move little, so it usually proves the
+/// gap again with one support evaluation). `None` when no gap above `margin` was proven. The
 /// answer does not depend on `hints` (a climb from anywhere ends at a support).
-pub fn separating_axis(
+pub fn separating_gap(
     a: Points,
     b: Points,
     start: &Vec3,
     margin: f64,
     hints: &mut Hints,
-) -> Option<Vec3> {
+) -> Option<(Vec3, f64)> {
     if a.points.is_empty() || b.points.is_empty() {
         return None;
     }
@@ -129,7 +130,7 @@ pub fn separating_axis(
         // Every point of A - B lies at most `reach` along d: A is below B by at least -reach.
         let reach = d.dot(&w) / len;
         if reach < -margin {
-            return Some(d);
+            return Some((d, -reach));
         }
         // With d = -v, v the nearest point found so far, the gap is between -reach and |v|:
         // once they meet it is known to be below the margin.

@@ -19,7 +19,7 @@
 //! bounding boxes, clipped to them (half-spaces holding `A ∩ B` leave it unchanged), and then
 //! only the planes of the other body that cut the box are applied.
 
-use super::gjk::{separating_axis, Hints, Points};
+use super::gjk::{separating_gap, Hints, Points};
 use super::shape::{Posed, Shape};
 use crate::math::{bounding_box, Vec3};
 
@@ -473,20 +473,29 @@ const APART_REL: f64 = 1e-9;
 /// from `start`: then the exact overlap (whose round-off is ~1e-16 x size) is empty too, so
 /// taking this shortcut or not gives the same result.
 pub fn apart(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, start: &Vec3) -> bool {
-    gap_axis(sa, a, sb, b, start, &mut Hints::default()).is_some()
+    gap_proof(sa, a, sb, b, start, &mut Hints::default()).is_some()
 }
 
-/// [`apart`], handing back the direction that proves the gap (the best start for the same
-/// pair's test a step later), or `None`.
+/// A gap proven between two bodies: the direction, and how much farther apart than
+/// [`APART_REL`] x size the bodies are along it (what their motion may use up before the proof
+/// no longer holds).
+#[derive(Clone, Copy, Debug)]
+pub struct GapProof {
+    pub axis: Vec3,
+    pub spare: f64,
+}
+
+/// [`apart`], handing back the proof: the direction (the best start for the same pair's test a
+/// step later) and the spare distance, or `None`.
 /// `hints`: where large hulls' support climbs start, and ended (see [`Hints`]).
-pub fn gap_axis(
+pub fn gap_proof(
     sa: &Shape,
     a: &Posed,
     sb: &Shape,
     b: &Posed,
     start: &Vec3,
     hints: &mut Hints,
-) -> Option<Vec3> {
+) -> Option<GapProof> {
     let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
     let pa = Points {
         points: &a.vertices,
@@ -496,7 +505,11 @@ pub fn gap_axis(
         points: &b.vertices,
         climb: sb.climb.as_ref().map(|c| (c, &b.rot)),
     };
-    separating_axis(pa, pb, start, APART_REL * size, hints)
+    let margin = APART_REL * size;
+    separating_gap(pa, pb, start, margin, hints).map(|(axis, gap)| GapProof {
+        axis,
+        spare: gap - margin,
+    })
 }
 
 /// From the centre of A's bounding box to B's: the culling axis when no better one is known.

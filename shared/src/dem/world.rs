@@ -24,7 +24,7 @@
 use super::broad::{Aabb, Broad};
 use super::contacts::Contacts;
 use super::gjk::Hints;
-use super::overlap::{centre_line, gap_axis, overlap_along, Overlap};
+use super::overlap::{centre_line, gap_proof, overlap_along, GapProof, Overlap};
 use super::shape::{Posed, Remade, Shape};
 use super::wall::Wall;
 use crate::math::Vec3;
@@ -226,8 +226,7 @@ impl StepTimes {
 /// What the narrow phase finds for one candidate pair.
 enum Outcome {
     Touch(Touch),
-    /// Bodies `i < j` apart, as proven along this direction, with the supports it ended on.
-    Apart(u32, u32, Vec3, Hints),
+    Apart(Gap),
 }
 
 /// Gap proofs of the last step, ascending by pair, in the chunks the narrow phase made them in
@@ -236,18 +235,57 @@ enum Outcome {
 #[derive(Clone, Debug, Default)]
 struct Separations(Vec<Vec<Gap>>);
 
-/// A pair `(i, j)` proven apart, the direction that proved it and the supports it ended on.
-type Gap = ((u32, u32), (Vec3, Hints));
+/// A pair `(i, j)`, `i < j`, proven apart: the proof, the supports it ended on, and where both
+/// bodies were when it was made.
+#[derive(Clone, Copy, Debug)]
+struct Gap {
+    pair: (u32, u32),
+    proof: GapProof,
+    hints: Hints,
+    placed: [Placed; 2],
+}
+
+/// Where a body was, as far as its points are concerned.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Placed {
+    pos: Vec3,
+    rot: UnitQuaternion<f64>,
+    scale: f64,
+    shape: u32,
+}
+
+impl Placed {
+    fn of(b: &Body) -> Placed {
+        Placed {
+            pos: b.pos,
+            rot: b.rot,
+            scale: b.scale,
+            shape: b.shape,
+        }
+    }
+
+    /// The farthest any point of `b` (bounding radius `radius` about its centroid) can be from
+    /// where it was here: the centroid's displacement plus the chord of the rotation between,
+    /// `2 r sin(theta / 2)`, which is `2 r` times the vector part of `rot_b rot_here^-1`.
+    /// Infinite when the body changed its shape or size since.
+    fn moved(&self, b: &Body, radius: f64) -> f64 {
+        if b.scale != self.scale || b.shape != self.shape {
+            return f64::INFINITY;
+        }
+        let turn = b.rot * self.rot.inverse();
+        (b.pos - self.pos).norm() + 2.0 * radius * turn.imag().norm()
+    }
+}
 
 impl Separations {
-    /// The direction that proved the gap of pair `(i, j)` last step, and its supports.
-    fn get(&self, pair: (u32, u32)) -> Option<&(Vec3, Hints)> {
+    /// The gap proof of pair `(i, j)` from last step.
+    fn get(&self, pair: (u32, u32)) -> Option<&Gap> {
         let k = self
             .0
-            .partition_point(|chunk| chunk.last().is_some_and(|last| last.0 < pair));
+            .partition_point(|chunk| chunk.last().is_some_and(|last| last.pair < pair));
         let chunk = self.0.get(k)?;
-        let e = chunk.binary_search_by_key(&pair, |e| e.0).ok()?;
-        Some(&chunk[e].1)
+        let e = chunk.binary_search_by_key(&pair, |e| e.pair).ok()?;
+        Some(&chunk[e])
     }
 }
 
@@ -535,13 +573,26 @@ impl World {
                 Some(c) => overlap_along(si, pi, sj, pj, &c.normal),
                 None => {
                     let line = centre_line(pi, pj);
-                    let (start, mut hints) = self
-                        .separations
-                        .get((i, j))
-                        .copied()
-                        .unwrap_or((line, Hints::default()));
-                    if let Some(axis) = gap_axis(si, pi, sj, pj, &start, &mut hints) {
-                        return Some(Outcome::Apart(i, j, axis, hints));
+                    let last = self.separations.get((i, j));
+                    if let Some(gap) = last {
+                        // Still apart when the two bodies' motion since the proof is less than
+                        // its spare distance: the pair is then more than the proof's margin
+                        // apart, where the full test answers the same (no contact).
+                        let moved = gap.placed[0].moved(bi, si.radius * bi.scale)
+                            + gap.placed[1].moved(bj, sj.radius * bj.scale);
+                        if moved < gap.proof.spare {
+                            return Some(Outcome::Apart(*gap));
+                        }
+                    }
+                    let (start, mut hints) =
+                        last.map_or((line, Hints::default()), |g| (g.proof.axis, g.hints));
+                    if let Some(proof) = gap_proof(si, pi, sj, pj, &start, &mut hints) {
+                        return Some(Outcome::Apart(Gap {
+                            pair: (i, j),
+                            proof,
+                            hints,
+                            placed: [Placed::of(bi), Placed::of(bj)],
+                        }));
                     }
                     overlap_along(si, pi, sj, pj, &line)
                 }
@@ -562,7 +613,7 @@ impl World {
             for outcome in chunk.iter().filter_map(narrow) {
                 match outcome {
                     Outcome::Touch(t) => touches.push(t),
-                    Outcome::Apart(i, j, axis, hints) => apart.push(((i, j), (axis, hints))),
+                    Outcome::Apart(gap) => apart.push(gap),
                 }
             }
             (touches, apart)
@@ -812,14 +863,31 @@ pub fn free_rotation(rot: &mut UnitQuaternion<f64>, l: &Vec3, moments: &Vec3, dt
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::{cube, cuboid};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
+        let axis = Vec3::from_fn(|_, _| rng.random_range(-1.0..1.0));
+        UnitQuaternion::from_scaled_axis(axis * rng.random_range(0.0..3.0))
+    }
 
     #[test]
     fn gap_proofs_are_found_across_their_chunks() {
-        let gap = |i: u32, j: u32| {
-            (
-                (i, j),
-                (Vec3::new(i as f64, j as f64, 0.0), Hints::default()),
-            )
+        let placed = Placed {
+            pos: Vec3::zeros(),
+            rot: UnitQuaternion::identity(),
+            scale: 1.0,
+            shape: 0,
+        };
+        let gap = |i: u32, j: u32| Gap {
+            pair: (i, j),
+            proof: GapProof {
+                axis: Vec3::new(i as f64, j as f64, 0.0),
+                spare: 0.0,
+            },
+            hints: Hints::default(),
+            placed: [placed; 2],
         };
         let chunks = vec![
             vec![gap(0, 1), gap(0, 5), gap(2, 3)],
@@ -828,12 +896,148 @@ mod tests {
         ];
         let all: Vec<Gap> = chunks.concat();
         let s = Separations(chunks);
-        for (pair, (axis, _)) in &all {
-            assert_eq!(s.get(*pair).map(|g| g.0), Some(*axis), "{pair:?}");
+        for g in &all {
+            let found = s.get(g.pair).map(|f| f.proof.axis);
+            assert_eq!(found, Some(g.proof.axis), "{:?}", g.pair);
         }
         for missing in [(0, 0), (0, 2), (2, 4), (3, 0), (4, 4), (7, 9), (9, 9)] {
             assert!(s.get(missing).is_none(), "{missing:?}");
         }
         assert!(Separations::default().get((0, 1)).is_none());
+    }
+
+    #[test]
+    fn no_point_of_a_body_moves_farther_than_its_motion_bound() {
+        let shape = Shape::from_mesh(&cuboid(Vec3::new(0.02, 0.005, 0.01))).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut w = World::new(Material::default(), Vec3::zeros());
+        let s = w.add_shape(shape);
+        let i = w.add_body(s, 1.5, Vec3::new(0.1, -0.2, 0.3), random_rotation(&mut rng));
+        let mut tightest = f64::INFINITY;
+        for trial in 0..2000 {
+            let before = w.bodies[i].clone();
+            let placed = Placed::of(&before);
+            let small = trial % 2 == 0;
+            let (shift, turn) = if small { (1e-6, 1e-5) } else { (1e-2, 3.0) };
+            let b = &mut w.bodies[i];
+            b.pos += Vec3::from_fn(|_, _| rng.random_range(-shift..shift));
+            let axis = Vec3::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            b.rot = UnitQuaternion::from_scaled_axis(axis * rng.random_range(0.0..turn)) * b.rot;
+            let radius = w.shapes[s as usize].radius * b.scale;
+            let bound = placed.moved(b, radius);
+            let farthest = w.shapes[s as usize]
+                .vertices
+                .iter()
+                .map(|v| {
+                    let at = |b: &Body| b.pos + b.rot * (v * b.scale);
+                    (at(b) - at(&before)).norm()
+                })
+                .fold(0.0, f64::max);
+            assert!(
+                farthest <= bound * (1.0 + 1e-12),
+                "trial {trial}: {farthest} > {bound}"
+            );
+            tightest = tightest.min(bound / farthest);
+        }
+        // A bound, not a loose guess: the centroid's shift and the chord of the largest radius.
+        assert!(tightest < 1.5, "the bound is never tight: {tightest}");
+        let mut b = w.bodies[i].clone();
+        let placed = Placed::of(&b);
+        b.scale *= 1.0 + 1e-9;
+        assert_eq!(placed.moved(&b, 1.0), f64::INFINITY, "a body that grew");
+    }
+
+    /// Twelve cubes and bars thrown at each other, with and without the kept gap proofs.
+    fn thrown(seed: u64) -> World {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let material = Material {
+            kn: 1e6,
+            ks: 5e5,
+            ..Material::default()
+        };
+        let mut w = World::new(material, Vec3::zeros());
+        let c = w.add_shape(Shape::from_mesh(&cube(0.5)).unwrap());
+        let bar = w.add_shape(Shape::from_mesh(&cuboid(Vec3::new(1.0, 0.5, 0.5))).unwrap());
+        for k in 0..12 {
+            let at = Vec3::new((k % 3) as f64, ((k / 3) % 2) as f64, (k / 6) as f64) * 0.05;
+            let i = w.add_body([c, bar][k % 2], 0.02, at, random_rotation(&mut rng));
+            let centre = Vec3::new(0.05, 0.025, 0.025);
+            w.bodies[i].vel =
+                (centre - at) * 15.0 + Vec3::from_fn(|_, _| rng.random_range(-0.05..0.05));
+            w.bodies[i].ang_mom = Vec3::from_fn(|_, _| rng.random_range(-1e-6..1e-6));
+        }
+        w.dt = 0.2 * w.critical_dt();
+        w
+    }
+
+    #[test]
+    fn kept_gap_proofs_change_no_result() {
+        let (mut kept, mut fresh) = (thrown(5), thrown(5));
+        let (mut carried, mut contacts) = (0, 0);
+        for step in 0..3000 {
+            kept.step();
+            fresh.separations = Separations::default();
+            fresh.step();
+            assert_eq!(
+                format!("{:?}{:?}", kept.bodies, kept.contacts),
+                format!("{:?}{:?}", fresh.bodies, fresh.contacts),
+                "step {step}"
+            );
+            contacts += kept.contacts.len();
+            carried += kept
+                .separations
+                .0
+                .iter()
+                .flatten()
+                .filter(|g| g.placed[0] != Placed::of(&kept.bodies[g.pair.0 as usize]))
+                .count();
+        }
+        assert!(
+            contacts > 500,
+            "the bodies hardly met: {contacts} contact-steps"
+        );
+        assert!(carried > 1000, "proofs carried only {carried} times");
+    }
+
+    #[test]
+    fn a_body_moved_by_hand_past_its_gap_is_found_touching() {
+        use std::f64::consts::FRAC_PI_4;
+        let mut w = World::new(Material::default(), Vec3::zeros());
+        let c = w.add_shape(Shape::from_mesh(&cube(0.5)).unwrap());
+        let bar = w.add_shape(Shape::from_mesh(&cuboid(Vec3::new(2.0, 0.5, 0.5))).unwrap());
+        let turned = |angle: f64| UnitQuaternion::from_scaled_axis(Vec3::z() * angle);
+        // A 20 mm cube turned 45 degrees: a face looks along the diagonal, 10 mm out.
+        w.add_body(c, 0.02, Vec3::zeros(), turned(FRAC_PI_4));
+        // A 40 x 10 x 10 mm bar across that diagonal, 16 mm out: 1 mm clear of the face, its
+        // box well over the cube's, so the pair needs a gap proof every step.
+        let out = |d: f64| Vec3::new(1.0, 1.0, 0.0).normalize() * d;
+        w.add_body(bar, 0.01, out(0.016), turned(-FRAC_PI_4));
+        w.dt = 0.1 * w.critical_dt();
+        for _ in 0..3 {
+            w.step();
+            assert!(w.contacts.is_empty());
+        }
+        assert!(w.separations.get((0, 1)).is_some(), "no gap proof kept");
+        // Turned by hand along the diagonal: it now reaches 4 mm past the cube's centre.
+        w.bodies[1].rot = turned(FRAC_PI_4);
+        w.step();
+        assert_eq!(w.contacts.len(), 1, "a turn past the gap");
+        // Put back clear, then pushed in by hand 0.5 mm past the face.
+        w.bodies[1].rot = turned(-FRAC_PI_4);
+        for b in &mut w.bodies {
+            b.vel = Vec3::zeros();
+            b.ang_mom = Vec3::zeros();
+        }
+        w.bodies[0].pos = Vec3::zeros();
+        w.bodies[0].rot = turned(FRAC_PI_4);
+        w.bodies[1].pos = out(0.016);
+        for _ in 0..3 {
+            w.step();
+            assert!(w.contacts.is_empty());
+        }
+        assert!(w.separations.get((0, 1)).is_some(), "no gap proof kept");
+        w.bodies[1].pos = out(0.0145);
+        w.step();
+        assert_eq!(w.contacts.len(), 1, "a shift past the gap");
     }
 }
