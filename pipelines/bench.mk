@@ -1,9 +1,11 @@
-# Throughput benchmarks: kernels in process (criterion; one thread) and the tools through the
-# pipe (pipelines/bench.sh), side by side in one run. Results: docs/bench.md.
+# Throughput benchmarks: kernels in process (criterion; one thread), the time step against
+# energy error (benches/timestep.rs, ~5 min), and the tools through the pipe
+# (pipelines/bench.sh), side by side in one run. Results: docs/bench.md.
 bench: build
 	cargo bench --locked -p granular-shared --bench geometry -- --noplot 2>&1 \
 	  | awk '/^geometry\// {name=$$0} /thrpt:/ && name {print name " " $$0; name=""}'
 	cargo bench --locked -p granular-shared --bench contacts -- --noplot 2>&1 \
 	  | awk '/^contacts\// {name=$$0} /thrpt:/ && name {print name " " $$0; name=""}'
+	cargo bench --locked -p granular-shared --bench timestep
 	pipelines/bench.sh
 	pipelines/bench-dem.sh

@@ -5,121 +5,14 @@
 //! The contacts are softer than the paper's (kn = 1e5 N/m instead of 1e8): conservation does
 //! not depend on the stiffness, and a 30x larger time step keeps the test to minutes.
 
-use nalgebra::UnitQuaternion;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
-use shared::dem::shape::Shape;
-use shared::dem::wall::Wall;
+use shared::dem::scenes::{run, Run, BODIES, T};
 use shared::dem::world::{Material, World};
-use shared::math::Vec3;
-use shared::polygen::{generate, Params};
-use shared::subdiv::subdivide;
 
-const BODIES: usize = 200;
-/// Simulated time: the grid falls and piles up.
-const T: f64 = 0.45;
-
-/// The box scene: templates, bodies on a loose grid with random poses and small velocities.
+/// Test 6's scene at the default time step, 0.2 x critical.
 fn box_scene(material: Material) -> World {
-    let mut w = World::new(material, Vec3::new(0.0, 0.0, -9.81));
-    for k in 0..9 {
-        let params = Params {
-            faces: 6 + k,
-            ..Default::default()
-        };
-        let p = generate(&params, 7, 0).unwrap();
-        let topo = p.mesh.topology(None).unwrap();
-        let ab3 = subdivide(&p.mesh, &topo, 3);
-        w.add_shape(Shape::from_mesh(&p.mesh).unwrap());
-        w.add_shape(Shape::from_mesh(&ab3).unwrap());
-    }
+    let w = shared::dem::scenes::box_scene(material, 0.2);
     assert!(w.shapes[1].vertices.len() > 300, "Ab_3 hulls are large");
-    let mut rng = ChaCha8Rng::seed_from_u64(6);
-    // Sizes (equivalent-sphere diameters) uniform in 20..30 mm.
-    let picks: Vec<(u32, f64)> = (0..BODIES)
-        .map(|i| {
-            let shape = ((i % 9) * 2 + (i / 9) % 2) as u32;
-            let s = &w.shapes[shape as usize];
-            let d_eq = (6.0 * s.volume / std::f64::consts::PI).cbrt();
-            (shape, rng.random_range(0.020..0.030) / d_eq)
-        })
-        .collect();
-    // Rain: each body at a random (x, y), as low as its bounding sphere clears the ones placed.
-    let half = 0.22;
-    let mut placed: Vec<(Vec3, f64)> = Vec::new();
-    for &(shape, scale) in &picks {
-        let r = w.shapes[shape as usize].radius * scale;
-        let (x, y) = (
-            rng.random_range(-half + r..half - r),
-            rng.random_range(-half + r..half - r),
-        );
-        let z = placed
-            .iter()
-            .filter_map(|(p, rj)| {
-                let dh2 = (p.x - x).powi(2) + (p.y - y).powi(2);
-                let reach = (r + rj) * 1.001;
-                (dh2 < reach * reach).then(|| p.z + (reach * reach - dh2).sqrt())
-            })
-            .fold(r * 1.001, f64::max);
-        let pos = Vec3::new(x, y, z);
-        placed.push((pos, r));
-        let axis = Vec3::new(rng.random(), rng.random(), rng.random()) - Vec3::repeat(0.5);
-        let rot = UnitQuaternion::from_scaled_axis(axis * 6.0);
-        let b = w.add_body(shape, scale, pos, rot);
-        w.bodies[b].vel =
-            (Vec3::new(rng.random(), rng.random(), rng.random()) - Vec3::repeat(0.5)) * 0.2;
-    }
-    w.walls.push(Wall::plane(Vec3::zeros(), Vec3::z()));
-    for n in [Vec3::x(), -Vec3::x(), Vec3::y(), -Vec3::y()] {
-        w.walls.push(Wall::plane(n * -half, n));
-    }
-    w.dt = 0.2 * w.critical_dt();
-    let top = placed.iter().map(|(p, _)| p.z).fold(0.0, f64::max);
-    eprintln!(
-        "box {:.3} m wide, rain {top:.3} m high, dt {:.3e} s",
-        2.0 * half,
-        w.dt
-    );
     w
-}
-
-/// What a run of the box scene measured.
-struct Run {
-    /// Largest drift of the audit's balance from its value after the first step, J.
-    drift: f64,
-    peak_kinetic: f64,
-    gravity_work: f64,
-    /// Most contacts at once.
-    contacts: usize,
-    /// Contacts that began during the run (collisions, with walls or bodies).
-    collisions: usize,
-}
-
-/// Runs the scene for `t` seconds.
-fn run(mut w: World, t: f64) -> Run {
-    w.step();
-    let start = w.energy.balance();
-    let (mut drift, mut peak_kinetic): (f64, f64) = (0.0, 0.0);
-    let (mut contacts, mut collisions) = (0, 0);
-    while w.time < t {
-        let before: Vec<_> = w.contacts.keys().copied().collect();
-        w.step();
-        collisions += w
-            .contacts
-            .keys()
-            .filter(|k| before.binary_search(k).is_err())
-            .count();
-        drift = drift.max((w.energy.balance() - start).abs());
-        peak_kinetic = peak_kinetic.max(w.energy.kinetic);
-        contacts = contacts.max(w.contacts.len());
-    }
-    Run {
-        drift,
-        peak_kinetic,
-        gravity_work: w.energy.gravity_work,
-        contacts,
-        collisions,
-    }
 }
 
 fn soft() -> Material {

@@ -14,6 +14,7 @@ pub mod contacts;
 pub mod gjk;
 pub mod overlap;
 pub mod peer;
+pub mod scenes;
 pub mod shape;
 pub mod state;
 pub mod vtk;
