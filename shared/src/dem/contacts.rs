@@ -32,16 +32,11 @@ impl Contacts {
         key: impl Fn(&T) -> ContactKey + Sync + Send,
         contact: impl Fn(&T) -> Contact + Sync + Send,
     ) -> Contacts {
+        let pair = |t: &T| (key(t), contact(t));
         let (keys, values): (Vec<ContactKey>, Vec<Contact>) = if par {
-            (
-                items.par_iter().map(&key).collect(),
-                items.par_iter().map(&contact).collect(),
-            )
+            items.par_iter().map(pair).unzip()
         } else {
-            (
-                items.iter().map(&key).collect(),
-                items.iter().map(&contact).collect(),
-            )
+            items.iter().map(pair).unzip()
         };
         assert!(
             keys.windows(2).all(|w| w[0] < w[1]),
