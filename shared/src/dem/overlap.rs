@@ -521,7 +521,9 @@ pub fn centre_line(a: &Posed, b: &Posed) -> Vec3 {
 /// normal from A to B). The result does not depend on the axis beyond round-off.
 pub fn overlap_along(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, axis: &Vec3) -> Option<Overlap> {
     let (mut o, _) = overlap_parts(sa, a, sb, b, axis)?;
-    if o.area_b.norm() <= SWALLOWED_REL * o.volume.powf(2.0 / 3.0) {
+    // |S_B| <= SWALLOWED_REL V^(2/3), cubed (no powf per contact).
+    let a2 = o.area_b.norm_squared();
+    if a2 * a2.sqrt() <= SWALLOWED_REL.powi(3) * o.volume * o.volume {
         // One body (nearly) inside the other: S_B vanishes and gives no direction. Push apart
         // along the line of centroids, by the penetration along it (separating-axis overlap).
         o.area_b = swallowed(a, b, o.volume);
