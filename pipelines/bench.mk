@@ -1,5 +1,5 @@
 # Throughput benchmarks: kernels in process (criterion; one thread), the time step against
-# energy error (benches/timestep.rs, ~5 min), and the tools through the pipe
+# energy error (benches/timestep.rs, ~2 min), and the tools through the pipe
 # (pipelines/bench.sh), side by side in one run. Results: docs/bench.md.
 bench: build
 	cargo bench --locked -p granular-shared --bench geometry -- --noplot 2>&1 \
