@@ -5,26 +5,12 @@
 //! table with the wall time and throughput of each run (all threads). Run by `make bench`:
 //! `cargo bench -p granular-shared --bench timestep`.
 
-use shared::dem::scenes::{box_scene, run, BODIES, T};
-use shared::dem::world::Material;
+use shared::dem::scenes::{box_scene, conservative, dissipative, run, soft, BODIES, T};
 use std::time::Instant;
 
 fn main() {
-    let soft = Material {
-        kn: 1e5,
-        ks: 5e4,
-        ..Material::default()
-    };
-    let dissipative = Material {
-        wall_friction: 0.5,
-        ..soft
-    };
-    let conservative = Material {
-        friction: 0.0,
-        wall_friction: 0.0,
-        damping: 0.0,
-        ..soft
-    };
+    let soft = soft();
+    let (dissipative, conservative) = (dissipative(soft), conservative(soft));
     println!(
         "Test 6's scene, {BODIES} bodies, {T} s simulated, kn = {:e} N/m",
         soft.kn

@@ -5,7 +5,7 @@
 //! The contacts are softer than the paper's (kn = 1e5 N/m instead of 1e8): conservation does
 //! not depend on the stiffness, and a 30x larger time step keeps the test to minutes.
 
-use shared::dem::scenes::{run, Run, BODIES, T};
+use shared::dem::scenes::{conservative, dissipative, run, soft, Run, BODIES, T};
 use shared::dem::world::{Material, World};
 
 /// Test 6's scene at the default time step, 0.2 x critical.
@@ -13,14 +13,6 @@ fn box_scene(material: Material) -> World {
     let w = shared::dem::scenes::box_scene(material, 0.2);
     assert!(w.shapes[1].vertices.len() > 300, "Ab_3 hulls are large");
     w
-}
-
-fn soft() -> Material {
-    Material {
-        kn: 1e5,
-        ks: 5e4,
-        ..Default::default()
-    }
 }
 
 /// KNOWN FAILURE (issue "DEM engine", test 6, conservative half). Undamped and frictionless the
@@ -43,12 +35,7 @@ fn two_hundred_mixed_polyhedra_in_a_box_keep_their_energy() {
 /// Test 6's conservative half with the stiffness of `material`: undamped and frictionless, the
 /// energy stays within 1 % of the peak kinetic energy.
 fn keep_their_energy(material: Material) {
-    let w = box_scene(Material {
-        friction: 0.0,
-        wall_friction: 0.0,
-        damping: 0.0,
-        ..material
-    });
+    let w = box_scene(conservative(material));
     let r = run(w, T);
     eprintln!(
         "conservative, kn = {:e}: drift {:.3e} J, peak kinetic {:.3e} J, gravity work {:.3e} J, {} contacts at most, {} collisions",
@@ -90,10 +77,7 @@ fn two_hundred_mixed_polyhedra_in_a_box_keep_their_energy_at_the_papers_stiffnes
 /// V / |S_B| is a third of the penetration): contacts now carry the work done on them.
 #[test]
 fn two_hundred_mixed_polyhedra_in_a_box_close_the_energy_audit() {
-    let w = box_scene(Material {
-        wall_friction: 0.5,
-        ..soft()
-    });
+    let w = box_scene(dissipative(soft()));
     let Run {
         drift,
         gravity_work: gravity,
