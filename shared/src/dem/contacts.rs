@@ -6,14 +6,27 @@
 //! cache). On a 2000-particle bed the `BTreeMap` this replaces took 4 to 5 % of a step on 2
 //! threads, all of it serial.
 
+use super::structure::Structure;
 use super::world::{Contact, ContactKey};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Contacts by key, ascending. Iterates like a map: `for (key, contact) in &contacts`.
-#[derive(Clone, Debug, Default, PartialEq)]
+///
+/// Each contact may also keep its overlap's structure ([`super::structure`]), to start the next
+/// step's contact geometry from. That is not state (the result is the same without it): it is
+/// left out of comparisons, and a contact inserted by hand has none.
+#[derive(Clone, Debug, Default)]
 pub struct Contacts {
     keys: Vec<ContactKey>,
     values: Vec<Contact>,
+    kept: Vec<Option<Arc<Structure>>>,
+}
+
+impl PartialEq for Contacts {
+    fn eq(&self, other: &Contacts) -> bool {
+        self.keys == other.keys && self.values == other.values
+    }
 }
 
 impl Contacts {
@@ -26,14 +39,15 @@ impl Contacts {
     ///
     /// # Panics
     /// If the keys are not strictly ascending: a step that builds them otherwise is a bug.
+    /// `contact`: the contact, and the structure it keeps.
     pub fn from_sorted<T: Sync>(
         items: &[T],
         par: bool,
         key: impl Fn(&T) -> ContactKey + Sync + Send,
-        contact: impl Fn(&T) -> Contact + Sync + Send,
+        contact: impl Fn(&T) -> (Contact, Option<Arc<Structure>>) + Sync + Send,
     ) -> Contacts {
         let pair = |t: &T| (key(t), contact(t));
-        let (keys, values): (Vec<ContactKey>, Vec<Contact>) = if par {
+        let (keys, (values, kept)): (Vec<ContactKey>, (Vec<Contact>, Vec<_>)) = if par {
             items.par_iter().map(pair).unzip()
         } else {
             items.iter().map(pair).unzip()
@@ -42,7 +56,7 @@ impl Contacts {
             keys.windows(2).all(|w| w[0] < w[1]),
             "contacts must be built in strictly ascending key order"
         );
-        Contacts { keys, values }
+        Contacts { keys, values, kept }
     }
 
     pub fn len(&self) -> usize {
@@ -56,10 +70,30 @@ impl Contacts {
     pub fn clear(&mut self) {
         self.keys.clear();
         self.values.clear();
+        self.kept.clear();
     }
 
     pub fn get(&self, key: &ContactKey) -> Option<&Contact> {
         self.keys.binary_search(key).ok().map(|k| &self.values[k])
+    }
+
+    /// Where `key` is or would go: the first position whose key is not below it.
+    pub fn lower_bound(&self, key: &ContactKey) -> usize {
+        self.keys.partition_point(|k| k < key)
+    }
+
+    /// The contact of `key` and the structure it keeps, looked for from position `*at` on (at
+    /// most `key`'s [`Contacts::lower_bound`]), which then moves to `key`'s place: ascending keys
+    /// are found by one walk over the list instead of a search each.
+    pub fn seek(
+        &self,
+        at: &mut usize,
+        key: &ContactKey,
+    ) -> Option<(&Contact, Option<&Arc<Structure>>)> {
+        while self.keys.get(*at).is_some_and(|k| k < key) {
+            *at += 1;
+        }
+        (self.keys.get(*at) == Some(key)).then(|| (&self.values[*at], self.kept[*at].as_ref()))
     }
 
     pub fn contains_key(&self, key: &ContactKey) -> bool {
@@ -69,10 +103,14 @@ impl Contacts {
     /// Inserts or replaces the contact of `key`, returning the one it replaced.
     pub fn insert(&mut self, key: ContactKey, contact: Contact) -> Option<Contact> {
         match self.keys.binary_search(&key) {
-            Ok(k) => Some(std::mem::replace(&mut self.values[k], contact)),
+            Ok(k) => {
+                self.kept[k] = None;
+                Some(std::mem::replace(&mut self.values[k], contact))
+            }
             Err(k) => {
                 self.keys.insert(k, key);
                 self.values.insert(k, contact);
+                self.kept.insert(k, None);
                 None
             }
         }
@@ -159,7 +197,7 @@ mod tests {
             .map(|i| ((Partner::Body(i / 7), i), i as f64))
             .chain((0..300u32).map(|i| ((Partner::Wall(i / 100), i), -(i as f64))))
             .collect();
-        let build = |par| Contacts::from_sorted(&items, par, |t| t.0, |t| contact(t.1));
+        let build = |par| Contacts::from_sorted(&items, par, |t| t.0, |t| (contact(t.1), None));
         let (a, b) = (build(true), build(false));
         assert_eq!(a, b);
         assert_eq!(a.len(), 800);
@@ -173,6 +211,6 @@ mod tests {
     #[should_panic(expected = "ascending key order")]
     fn a_list_out_of_key_order_is_refused() {
         let items = [(Partner::Wall(0), 1u32), (Partner::Body(3), 0)];
-        Contacts::from_sorted(&items, false, |k| *k, |_| contact(0.0));
+        Contacts::from_sorted(&items, false, |k| *k, |_| (contact(0.0), None));
     }
 }

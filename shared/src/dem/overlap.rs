@@ -21,7 +21,9 @@
 
 use super::gjk::{separating_gap, Hints, Points};
 use super::shape::{Posed, Shape};
+use super::structure::{discover, Pair, Structure};
 use crate::math::{bounding_box, Vec3};
+use std::sync::Arc;
 
 /// The overlap of two bodies: volume, centroid, and `S_B` (area vector of B's surface inside A,
 /// outward from B). `normal()` points from A to B.
@@ -52,14 +54,14 @@ impl Overlap {
 /// terms are ~1e10 times larger and their round-off (and the ~1e-17 m seams between pieces
 /// clipped along different paths) swamped its volume, which gave depths of metres.
 #[derive(Default)]
-struct Acc {
+pub(super) struct Acc {
     /// Set by the first piece.
     reference: Option<Vec3>,
     /// A plane the reference must lie on (a wall's, whose cap is not added as a piece).
     plane: Option<(Vec3, f64)>,
     volume6: f64,
     moment24: Vec3,
-    area_b: Vec3,
+    pub(super) area_b: Vec3,
     /// Area vector of A's first face inside B (outward from A): a wall facet's cap.
     cap_a: Vec3,
 }
@@ -67,7 +69,7 @@ struct Acc {
 impl Acc {
     /// A piece of the boundary, counter-clockwise seen from outside `A ∩ B`; `on_b` when it lies
     /// on B's surface.
-    fn piece(&mut self, poly: &[Vec3], on_b: bool) -> Vec3 {
+    pub(super) fn piece(&mut self, poly: &[Vec3], on_b: bool) -> Vec3 {
         if poly.len() < 3 {
             return Vec3::zeros();
         }
@@ -94,7 +96,7 @@ impl Acc {
     }
 
     /// The volume and centroid summed so far; `None` for no volume.
-    fn volume_centroid(&self) -> Option<(f64, Vec3)> {
+    pub(super) fn volume_centroid(&self) -> Option<(f64, Vec3)> {
         let volume = self.volume6 / 6.0;
         let o = self.reference?;
         if volume.is_nan() || volume <= 0.0 {
@@ -520,7 +522,31 @@ pub fn centre_line(a: &Posed, b: &Posed) -> Vec3 {
 /// [`overlap`] with the culling slab across `axis` (any non-zero vector; best the last contact
 /// normal from A to B). The result does not depend on the axis beyond round-off.
 pub fn overlap_along(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, axis: &Vec3) -> Option<Overlap> {
-    let (mut o, _) = overlap_parts(sa, a, sb, b, axis)?;
+    overlap_kept(sa, a, sb, b, axis, None).map(|(o, _)| o)
+}
+
+/// [`overlap_along`], also handing back the overlap's structure (see [`super::structure`]) when
+/// it has one, and trying `kept` (the pair's structure from the last step) first. The result is
+/// the same, to the bit, with or without `kept`.
+pub fn overlap_kept(
+    sa: &Shape,
+    a: &Posed,
+    sb: &Shape,
+    b: &Posed,
+    axis: &Vec3,
+    kept: Option<&Arc<Structure>>,
+) -> Option<(Overlap, Option<Arc<Structure>>)> {
+    let kept = kept.and_then(|s| {
+        let o = s.evaluate(&Pair::new(sa, a, sb, b)?)?;
+        Some((o, Some(Arc::clone(s))))
+    });
+    let (mut o, structure) = match kept {
+        Some(found) => found,
+        None => {
+            let (o, _, s) = overlap_parts_with(sa, a, sb, b, axis, true)?;
+            (o, s.map(Arc::new))
+        }
+    };
     // |S_B| <= SWALLOWED_REL V^(2/3), cubed (no powf per contact).
     let a2 = o.area_b.norm_squared();
     if a2 * a2.sqrt() <= SWALLOWED_REL.powi(3) * o.volume * o.volume {
@@ -528,7 +554,7 @@ pub fn overlap_along(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, axis: &Vec3) 
         // along the line of centroids, by the penetration along it (separating-axis overlap).
         o.area_b = swallowed(a, b, o.volume);
     }
-    Some(o)
+    Some((o, structure))
 }
 
 /// The overlap polyhedron's volume, centroid and `S_B`, and the area vector of A's first face
@@ -540,6 +566,19 @@ pub(crate) fn overlap_parts(
     b: &Posed,
     axis: &Vec3,
 ) -> Option<(Overlap, Vec3)> {
+    overlap_parts_with(sa, a, sb, b, axis, false).map(|(o, cap, _)| (o, cap))
+}
+
+/// [`overlap_parts`]; with `structured`, the overlap of a pair that has a structure
+/// ([`discover`]) is computed from it (then the cap is not), and the structure handed back.
+fn overlap_parts_with(
+    sa: &Shape,
+    a: &Posed,
+    sb: &Shape,
+    b: &Posed,
+    axis: &Vec3,
+    structured: bool,
+) -> Option<(Overlap, Vec3, Option<Structure>)> {
     let lo = a.lo.sup(&b.lo);
     let hi = a.hi.inf(&b.hi);
     if lo.x >= hi.x || lo.y >= hi.y || lo.z >= hi.z {
@@ -553,7 +592,7 @@ pub(crate) fn overlap_parts(
     };
     let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
     let mut acc = Acc::default();
-    SCRATCH.with_borrow_mut(|sc| {
+    let found = SCRATCH.with_borrow_mut(|sc| {
         let Scratch {
             clip,
             side_a,
@@ -584,6 +623,14 @@ pub(crate) fn overlap_parts(
         side_b.reach_down_to(sb, b, &n, -1.0, -hi_n);
         faces_around(sa, &side_a.reach, faces_a);
         faces_around(sb, &side_b.reach, faces_b);
+        if let Some(pair) = structured.then(|| Pair::new(sa, a, sb, b)).flatten() {
+            let reach = [&side_a.reach[..], &side_b.reach[..]];
+            if let Some(s) = discover(&pair, reach, [faces_a, faces_b]) {
+                if let Some(o) = s.evaluate(&pair) {
+                    return Some(Some((o, s)));
+                }
+            }
+        }
         let gather = |s: &Shape, p: &Posed, faces: &[u32], out: &mut Vec<(Vec3, f64)>| {
             out.clear();
             out.extend(faces.iter().map(|&f| p.plane(s, f as usize)));
@@ -616,8 +663,11 @@ pub(crate) fn overlap_parts(
             sb, b, faces_b, planes_b, planes_a, cuts_a, planes_a, &bounds, true, &mut acc, size,
             clip,
         );
-        Some(())
+        Some(None)
     })?;
+    if let Some((o, s)) = found {
+        return Some((o, Vec3::zeros(), Some(s)));
+    }
     let (volume, centroid) = acc.volume_centroid()?;
     Some((
         Overlap {
@@ -626,6 +676,7 @@ pub(crate) fn overlap_parts(
             area_b: acc.area_b,
         },
         acc.cap_a,
+        None,
     ))
 }
 

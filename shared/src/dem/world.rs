@@ -24,12 +24,14 @@
 use super::broad::{Aabb, Broad};
 use super::contacts::Contacts;
 use super::gjk::Hints;
-use super::overlap::{centre_line, gap_proof, overlap_along, GapProof, Overlap};
+use super::overlap::{centre_line, gap_proof, overlap_kept, GapProof, Overlap};
 use super::shape::{Posed, Remade, Shape};
+use super::structure::Structure;
 use super::wall::Wall;
 use crate::math::Vec3;
 use nalgebra::{Unit, UnitQuaternion};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Material and contact parameters (SI units). Defaults are the paper's Table 1.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -197,6 +199,9 @@ pub struct World {
     /// and the kept list of pairs. Not part of the state (only speed depends on it).
     posed: Vec<Posed>,
     broad: Broad,
+    /// Whether contacts keep their overlap's structure for the next step ([`super::structure`]).
+    /// Only speed depends on it; off, every contact's structure is found again each step.
+    pub keep_structures: bool,
     /// Wall-clock seconds spent in each part of [`World::step`] so far (not part of the state).
     pub times: StepTimes,
 }
@@ -301,6 +306,8 @@ struct Touch {
     node_weights: Vec<(u32, f64)>,
     /// Velocity of the partner's surface at the contact point.
     wall_velocity: Vec3,
+    /// The overlap's structure, kept for the next step.
+    kept: Option<Arc<Structure>>,
 }
 
 impl World {
@@ -321,6 +328,7 @@ impl World {
             separations: Separations::default(),
             posed: Vec::new(),
             broad: Broad::default(),
+            keep_structures: true,
             times: StepTimes::default(),
         }
     }
@@ -480,7 +488,15 @@ impl World {
     }
 
     /// Contact forces of one touching pair from its overlap.
-    fn touch(&self, key: ContactKey, o: &Overlap, va: Vec3, friction: f64) -> Touch {
+    /// `last`: the contact of `key` last step, if any.
+    fn touch(
+        &self,
+        key: ContactKey,
+        last: Option<&Contact>,
+        o: &Overlap,
+        va: Vec3,
+        friction: f64,
+    ) -> Touch {
         let m = &self.material;
         let b = &self.bodies[key.1 as usize];
         let n = o.normal();
@@ -489,7 +505,6 @@ impl World {
         let point = o.centroid;
         let rel = b.velocity_at(&point) - va;
         let vt = rel - n * n.dot(&rel);
-        let last = self.contacts.get(&key);
         // Work against the normal force over the step (the mean of the last and this step's
         // force over the contact point's relative displacement), stored as the contact's
         // energy. A new contact starts as if pressed flat: exact for a scene built with
@@ -532,6 +547,7 @@ impl World {
             slip_energy,
             node_weights: Vec::new(),
             wall_velocity: va,
+            kept: None,
         }
     }
 
@@ -558,7 +574,8 @@ impl World {
         let boxes: Vec<Aabb> = posed.iter().map(|p| (p.lo, p.hi)).collect();
         let pairs = self.broad.pairs(&boxes, par);
         self.times.broad += lap();
-        let narrow = |&(i, j): &(u32, u32)| {
+        // `at`: where this chunk's walk over the contact list is (see `Contacts::seek`).
+        let narrow = |&(i, j): &(u32, u32), at: &mut usize| {
             let (bi, bj) = (&self.bodies[i as usize], &self.bodies[j as usize]);
             if bi.fixed && bj.fixed {
                 return None;
@@ -571,8 +588,12 @@ impl World {
             );
             // Warm start: the last normal bounds this step's overlap most tightly; a new pair
             // is first tested for a gap, from the direction that proved it last step.
-            let o = match self.contacts.get(&key) {
-                Some(c) => overlap_along(si, pi, sj, pj, &c.normal),
+            let last = self.contacts.seek(at, &key);
+            let (o, kept) = match last {
+                Some((c, kept)) => {
+                    let kept = kept.filter(|_| self.keep_structures);
+                    overlap_kept(si, pi, sj, pj, &c.normal, kept)
+                }
                 None => {
                     let line = centre_line(pi, pj);
                     let last = self.separations.get((i, j));
@@ -596,23 +617,25 @@ impl World {
                             placed: [Placed::of(bi), Placed::of(bj)],
                         }));
                     }
-                    overlap_along(si, pi, sj, pj, &line)
+                    overlap_kept(si, pi, sj, pj, &line, None)
                 }
             }?;
             let va = bi.velocity_at(&o.centroid);
-            Some(Outcome::Touch(self.touch(
-                key,
-                &o,
-                va,
-                self.material.friction,
-            )))
+            let last = last.map(|(c, _)| c);
+            let mut touch = self.touch(key, last, &o, va, self.material.friction);
+            touch.kept = kept;
+            Some(Outcome::Touch(touch))
         };
         // Each chunk of pairs keeps its own touches and gaps, so no thread copies another's
         // results into one list (that copy was 4 % of a step on 2 threads): the touches are
         // then referenced in pair order.
+        let contacts = &self.contacts;
         let mut chunks = map_chunks_maybe_par(&pairs, par, |chunk| {
             let (mut touches, mut apart) = (Vec::new(), Vec::new());
-            for outcome in chunk.iter().filter_map(narrow) {
+            let mut at = chunk
+                .first()
+                .map_or(0, |&(i, j)| contacts.lower_bound(&(Partner::Body(i), j)));
+            for outcome in chunk.iter().filter_map(|pair| narrow(pair, &mut at)) {
                 match outcome {
                     Outcome::Touch(t) => touches.push(t),
                     Outcome::Apart(gap) => apart.push(gap),
@@ -643,8 +666,10 @@ impl World {
             let wall = &this.walls[w as usize];
             let shape = &this.shapes[b.shape as usize];
             let hit = wall.touch(shape, &posed[i as usize], shape.radius * b.scale)?;
+            let key = (Partner::Wall(w), i);
             let mut t = this.touch(
-                (Partner::Wall(w), i),
+                key,
+                this.contacts.get(&key),
                 &hit.overlap,
                 hit.velocity,
                 this.material.wall_friction,
@@ -704,7 +729,12 @@ impl World {
             self.energy.friction += t.slip_energy;
         }
         let mean_contact_force = contact_force / touches.len() as f64;
-        self.contacts = Contacts::from_sorted(&touches, par, |t| t.key, |t| t.contact.clone());
+        self.contacts = Contacts::from_sorted(
+            &touches,
+            par,
+            |t| t.key,
+            |t| (t.contact.clone(), t.kept.clone()),
+        );
         self.energy.elastic = elastic;
         self.energy.wall_work += wall_power * dt;
         self.times.assembly += lap();

@@ -1,0 +1,468 @@
+//! The overlap polyhedron by its structure, kept from one step to the next.
+//!
+//! At rest, 99.5 % of contacts keep the same overlap structure from one step to the next
+//! (docs/dem-contact.md). So instead of clipping faces every step, a contact keeps the list of
+//! the overlap's corners, each named by what makes it:
+//! - a vertex of one body inside the other, or
+//! - an edge of one body crossing a face plane of the other,
+//!
+//! and, for each face of either body that bounds the overlap, the ring of corners around its
+//! piece. A step recomputes only the corners (a vertex, or one edge-plane crossing each) and sums
+//! the pieces ([`Structure::evaluate`]).
+//!
+//! **When the structure is right.** Each corner is checked at every evaluation: a vertex must lie
+//! inside every face plane of the other body, and an edge must cross its plane with both ends
+//! off it and the crossing inside every other plane of the other body, all by a margin
+//! ([`MARGIN_REL`] x size). A structure is only made ([`discover`]) when, besides, each ring's
+//! consecutive corners share exactly one plane other than the ring's own, and that plane has a
+//! ring too. Then each ring is the whole of its face inside the overlap (a convex polygon inside
+//! another whose every edge lies on a supporting line of the other is the other), and the rings
+//! close the surface. When a corner fails, the structure has changed (a corner crossed a plane)
+//! and the pair goes back to [`discover`].
+//!
+//! **Same bytes either way.** A structure that passes the checks is the overlap's own (every
+//! corner a vertex of it, robustly, by the margin), and [`discover`] from the same poses finds
+//! that same structure, in the same canonical order (corners sorted, pieces by body then face,
+//! each ring counter-clockwise from its lowest corner). The result is computed from the
+//! structure in both cases, so keeping structures or not gives the same bytes, and a restart
+//! (which keeps none) equals the uninterrupted run. Near-degenerate overlaps (a corner within the
+//! margin of another plane, faces pressed flat on each other) have no structure: the clipping
+//! construction of [`super::overlap`] handles them, every step.
+//!
+//! Only small shapes (fewer than [`CLIMB_MIN`] vertices, the I_P polyhedra) take part: a check
+//! runs over every plane of the other body.
+
+use super::overlap::{Acc, Overlap};
+use super::shape::{Posed, Shape, CLIMB_MIN};
+use crate::math::Vec3;
+
+/// Corners closer than this fraction of the pair's size to a plane they are not on, or to the
+/// end of their edge, are too close to a change of structure to be trusted to a kept one.
+/// Round-off in a corner is ~1e-16 x size.
+const MARGIN_REL: f64 = 1e-9;
+
+/// A corner of the overlap polyhedron, by what makes it. `side` 0 is body A, 1 body B.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Corner {
+    /// Vertex `i` of body `side`, inside the other body.
+    Vertex { side: u8, i: u32 },
+    /// The edge from vertex `i` to `j` (`i < j`) of body `side`, crossing face `face` of the
+    /// other body.
+    Edge { side: u8, i: u32, j: u32, face: u32 },
+}
+
+/// The structure of one overlap: its corners (ascending) and the rings of its pieces.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Structure {
+    corners: Vec<Corner>,
+    /// Per piece, ascending by (side, face): the body, its face, and where the piece's ring ends
+    /// in `rings` (it starts where the last one ended).
+    pieces: Vec<(u8, u32, u32)>,
+    /// Positions in `corners`, counter-clockwise seen from outside the overlap.
+    rings: Vec<u16>,
+}
+
+/// Two posed bodies and the margin their corners are checked with.
+pub struct Pair<'a> {
+    shapes: [&'a Shape; 2],
+    posed: [&'a Posed; 2],
+    margin: f64,
+}
+
+impl<'a> Pair<'a> {
+    /// `None` unless both shapes are small (fewer than [`CLIMB_MIN`] vertices) and have their
+    /// face planes posed.
+    pub fn new(sa: &'a Shape, a: &'a Posed, sb: &'a Shape, b: &'a Posed) -> Option<Pair<'a>> {
+        let posed = |s: &Shape, p: &Posed| {
+            s.vertices.len() < CLIMB_MIN && p.normals.len() == s.face_count()
+        };
+        if !posed(sa, a) || !posed(sb, b) {
+            return None;
+        }
+        let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
+        Some(Pair {
+            shapes: [sa, sb],
+            posed: [a, b],
+            margin: MARGIN_REL * size,
+        })
+    }
+
+    /// Where corner `c` is, or `None` when it is not robustly a corner of the overlap.
+    fn corner(&self, c: Corner) -> Option<Vec3> {
+        match c {
+            Corner::Vertex { side, i } => {
+                let v = self.posed[side as usize].vertices[i as usize];
+                self.inside(1 - side, &v, u32::MAX).then_some(v)
+            }
+            Corner::Edge { side, i, j, face } => {
+                let own = self.posed[side as usize];
+                let other = self.posed[1 - side as usize];
+                let (n, d) = (other.normals[face as usize], other.offsets[face as usize]);
+                let (vi, vj) = (own.vertices[i as usize], own.vertices[j as usize]);
+                let (si, sj) = (n.dot(&vi) - d, n.dot(&vj) - d);
+                let m = self.margin;
+                if !((si < -m && sj > m) || (si > m && sj < -m)) {
+                    return None;
+                }
+                let p = vi + (vj - vi) * (si / (si - sj));
+                self.inside(1 - side, &p, face).then_some(p)
+            }
+        }
+    }
+
+    /// True when `p` is inside every face plane of body `side` but `skip` by the margin.
+    fn inside(&self, side: u8, p: &Vec3, skip: u32) -> bool {
+        let posed = self.posed[side as usize];
+        let m = self.margin;
+        posed
+            .normals
+            .iter()
+            .zip(&posed.offsets)
+            .enumerate()
+            .all(|(k, (n, d))| k as u32 == skip || n.dot(p) - d < -m)
+    }
+
+    /// The face planes corner `c` lies on, as (side, face), ascending.
+    fn planes(&self, c: Corner, out: &mut Vec<(u8, u32)>) {
+        out.clear();
+        match c {
+            Corner::Vertex { side, i } => {
+                let s = self.shapes[side as usize];
+                out.extend(s.faces_at(i as usize).iter().map(|&f| (side, f)));
+            }
+            Corner::Edge { side, i, j, face } => {
+                let s = self.shapes[side as usize];
+                let at_j = s.faces_at(j as usize);
+                out.extend(
+                    s.faces_at(i as usize)
+                        .iter()
+                        .filter(|f| at_j.contains(f))
+                        .map(|&f| (side, f)),
+                );
+                out.push((1 - side, face));
+            }
+        }
+        out.sort_unstable();
+    }
+}
+
+/// The structure of the overlap of `pair`, or `None` when it is near-degenerate (or empty).
+/// `reach`: each body's vertices that can lie in the overlap; `faces`: each body's faces that can
+/// bound it (for both, all of them will do; [`super::overlap`] passes those meeting its slab).
+pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<Structure> {
+    let mut found: Vec<(Corner, Vec3)> = Vec::new();
+    let mut edges: Vec<(u32, u32)> = Vec::new();
+    for side in 0..2u8 {
+        let s = pair.shapes[side as usize];
+        for &i in reach[side as usize] {
+            let c = Corner::Vertex { side, i };
+            if let Some(p) = pair.corner(c) {
+                found.push((c, p));
+            }
+        }
+        edges.clear();
+        for &f in faces[side as usize] {
+            let fv = s.face(f as usize);
+            for (k, &p) in fv.iter().enumerate() {
+                let q = fv[(k + 1) % fv.len()];
+                edges.push((p.min(q), p.max(q)));
+            }
+        }
+        edges.sort_unstable();
+        edges.dedup();
+        for &(i, j) in &edges {
+            for &face in faces[1 - side as usize] {
+                let c = Corner::Edge { side, i, j, face };
+                if let Some(p) = pair.corner(c) {
+                    found.push((c, p));
+                }
+            }
+        }
+    }
+    found.sort_unstable_by_key(|&(c, _)| c);
+    if found.len() < 4 || found.len() > usize::from(u16::MAX) {
+        return None;
+    }
+    // Which planes each corner lies on, and the corners on each plane.
+    let mut planes: Vec<Vec<(u8, u32)>> = Vec::with_capacity(found.len());
+    let mut on: Vec<((u8, u32), u16)> = Vec::new();
+    let mut buf = Vec::new();
+    for (k, &(c, _)) in found.iter().enumerate() {
+        pair.planes(c, &mut buf);
+        on.extend(buf.iter().map(|&pl| (pl, k as u16)));
+        planes.push(buf.clone());
+    }
+    on.sort_unstable();
+    let groups: Vec<&[((u8, u32), u16)]> = on.chunk_by(|x, y| x.0 == y.0).collect();
+    let has_ring = |pl: (u8, u32)| groups.binary_search_by_key(&pl, |g| g[0].0).is_ok();
+    let mut pieces = Vec::with_capacity(groups.len());
+    let mut rings: Vec<u16> = Vec::with_capacity(on.len());
+    for g in &groups {
+        if g.len() < 3 {
+            return None; // a face touching the overlap along an edge or at a point
+        }
+        let (side, face) = g[0].0;
+        let n = pair.posed[side as usize].normals[face as usize];
+        let at = |k: u16| found[k as usize].1;
+        let mean = g.iter().map(|&(_, k)| at(k)).sum::<Vec3>() / g.len() as f64;
+        let first = at(g[0].1) - mean;
+        let u = first - n * n.dot(&first);
+        let w = n.cross(&u);
+        let mut ring: Vec<(f64, u16)> = g
+            .iter()
+            .map(|&(_, k)| {
+                let r = at(k) - mean;
+                (r.dot(&w).atan2(r.dot(&u)), k)
+            })
+            .collect();
+        ring.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
+        let lowest = (0..ring.len()).min_by_key(|&k| ring[k].1).unwrap_or(0);
+        ring.rotate_left(lowest);
+        // Consecutive corners share one edge line: the ring's plane and exactly one other,
+        // which bounds a piece of its own.
+        for (k, &(_, c1)) in ring.iter().enumerate() {
+            let c2 = ring[(k + 1) % ring.len()].1;
+            let (p1, p2) = (&planes[c1 as usize], &planes[c2 as usize]);
+            let mut shared = p1
+                .iter()
+                .filter(|pl| **pl != (side, face) && p2.binary_search(pl).is_ok());
+            match (shared.next(), shared.next()) {
+                (Some(&pl), None) if has_ring(pl) => {}
+                _ => return None,
+            }
+        }
+        rings.extend(ring.iter().map(|&(_, k)| k));
+        pieces.push((side, face, rings.len() as u32));
+    }
+    Some(Structure {
+        corners: found.into_iter().map(|(c, _)| c).collect(),
+        pieces,
+        rings,
+    })
+}
+
+thread_local! {
+    static CORNERS: std::cell::RefCell<(Vec<Vec3>, Vec<Vec3>)> = std::cell::RefCell::default();
+}
+
+impl Structure {
+    /// The overlap of `pair` from this structure, or `None` when it is no longer the overlap's
+    /// (a corner failed its check).
+    pub fn evaluate(&self, pair: &Pair) -> Option<Overlap> {
+        CORNERS.with_borrow_mut(|(at, ring)| {
+            at.clear();
+            for &c in &self.corners {
+                at.push(pair.corner(c)?);
+            }
+            ring.clear();
+            ring.extend(self.rings.iter().map(|&k| at[k as usize]));
+            let mut acc = Acc::default();
+            let mut start = 0;
+            for &(side, _, end) in &self.pieces {
+                let _ = acc.piece(&ring[start..end as usize], side == 1);
+                start = end as usize;
+            }
+            let (volume, centroid) = acc.volume_centroid()?;
+            Some(Overlap {
+                volume,
+                centroid,
+                area_b: acc.area_b,
+            })
+        })
+    }
+
+    /// How many corners the overlap has.
+    pub fn corner_count(&self) -> usize {
+        self.corners.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::overlap::{overlap_kept, overlap_parts};
+    use super::*;
+    use crate::math::unit_f64;
+    use crate::mesh::cube;
+    use crate::polygen::{generate, Params};
+    use nalgebra::UnitQuaternion;
+    use rand::{RngCore, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// I_P templates of 6, 9 and 14 faces, and a cube.
+    fn shapes() -> Vec<Shape> {
+        let mut out = vec![Shape::from_mesh(&cube(0.5)).unwrap()];
+        for faces in [6, 9, 14] {
+            let params = Params {
+                faces,
+                ..Default::default()
+            };
+            out.push(Shape::from_mesh(&generate(&params, 3, 0).unwrap().mesh).unwrap());
+        }
+        out
+    }
+
+    fn rotation(rng: &mut impl RngCore, angle: f64) -> UnitQuaternion<f64> {
+        let mut u = || (unit_f64(rng.next_u64()) - 0.5) * 2.0 * angle;
+        UnitQuaternion::from_euler_angles(u(), u(), u())
+    }
+
+    fn direction(rng: &mut impl RngCore) -> Vec3 {
+        let mut u = || unit_f64(rng.next_u64()) - 0.5;
+        Vec3::new(u(), u(), u()).normalize()
+    }
+
+    /// Random overlapping poses of two shapes: A at the origin, B along a random direction at a
+    /// fraction `reach` of the sum of their radii (0.8 to 1: shallow to medium overlaps).
+    fn poses(rng: &mut impl RngCore, count: usize) -> Vec<(usize, usize, Posed, Posed)> {
+        let shapes = shapes();
+        let mut out = Vec::new();
+        while out.len() < count {
+            let k = out.len();
+            let (i, j) = (k % shapes.len(), (k / shapes.len()) % shapes.len());
+            let a = shapes[i].posed(&Vec3::zeros(), &rotation(rng, 3.2), 1.0);
+            let reach =
+                (0.55 + 0.45 * unit_f64(rng.next_u64())) * (shapes[i].radius + shapes[j].radius);
+            let b = shapes[j].posed(&(direction(rng) * reach), &rotation(rng, 3.2), 1.0);
+            if overlap_parts(&shapes[i], &a, &shapes[j], &b, &(b.pos - a.pos)).is_some() {
+                out.push((i, j, a, b));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn the_structure_gives_the_clipped_overlap() {
+        let shapes = shapes();
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let mut structured = 0;
+        let all = poses(&mut rng, 2000);
+        for (t, (i, j, a, b)) in all.iter().enumerate() {
+            let (sa, sb) = (&shapes[*i], &shapes[*j]);
+            let axis = b.pos - a.pos;
+            let (clipped, _) = overlap_parts(sa, a, sb, b, &axis).unwrap();
+            let Some(pair) = Pair::new(sa, a, sb, b) else {
+                panic!("small shapes have a pair");
+            };
+            let Some(s) = discover(
+                &pair,
+                [&all_of(sa), &all_of(sb)],
+                [&faces_of(sa), &faces_of(sb)],
+            ) else {
+                continue;
+            };
+            structured += 1;
+            let o = s.evaluate(&pair).expect("a discovered structure evaluates");
+            let size = 2.0 * sa.radius.max(sb.radius);
+            assert!(
+                (o.volume - clipped.volume).abs() <= 1e-12 * size.powi(3)
+                    && (o.centroid - clipped.centroid).norm() <= 1e-9 * size
+                    && (o.area_b - clipped.area_b).norm() <= 1e-12 * size * size,
+                "pose {t}: structure {o:?}, clipped {clipped:?}"
+            );
+            // The culled candidates of the engine find the same structure as all of them.
+            let (kept, found) = overlap_kept(sa, a, sb, b, &axis, None).unwrap();
+            assert_eq!(found.as_deref(), Some(&s), "pose {t}");
+            assert_eq!(kept.volume, o.volume, "pose {t}");
+        }
+        // Random poses are not degenerate: nearly every one has a structure.
+        assert!(
+            structured > all.len() * 98 / 100,
+            "{structured} of {}",
+            all.len()
+        );
+    }
+
+    fn all_of(s: &Shape) -> Vec<u32> {
+        (0..s.vertices.len() as u32).collect()
+    }
+
+    fn faces_of(s: &Shape) -> Vec<u32> {
+        (0..s.face_count() as u32).collect()
+    }
+
+    #[test]
+    fn a_kept_structure_gives_the_same_bits_as_a_fresh_one() {
+        // B moves a little from where its structure was found: kept or found again, the
+        // overlap is the same to the bit, and both ways are taken (the structure still holds,
+        // or a corner crossed a plane and it is found again).
+        let shapes = shapes();
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        let (mut held, mut changed) = (0, 0);
+        for (t, (i, j, a, b)) in poses(&mut rng, 1500).iter().enumerate() {
+            let (sa, sb) = (&shapes[*i], &shapes[*j]);
+            let Some((_, Some(s))) = overlap_kept(sa, a, sb, b, &(b.pos - a.pos), None) else {
+                continue;
+            };
+            let step = sb.radius * 10f64.powf(-4.0 + 3.0 * unit_f64(rng.next_u64()));
+            let q =
+                rotation(&mut rng, step / sb.radius) * UnitQuaternion::from_rotation_matrix(&b.rot);
+            let moved = sb.posed(&(b.pos + direction(&mut rng) * step), &q, 1.0);
+            let axis = moved.pos - a.pos;
+            let fresh = overlap_kept(sa, a, sb, &moved, &axis, None);
+            let kept = overlap_kept(sa, a, sb, &moved, &axis, Some(&s));
+            assert_eq!(
+                fresh.as_ref().map(|f| f.0),
+                kept.as_ref().map(|k| k.0),
+                "pose {t}"
+            );
+            match Pair::new(sa, a, sb, &moved).and_then(|p| s.evaluate(&p)) {
+                Some(_) => held += 1,
+                None => changed += 1,
+            }
+        }
+        assert!(
+            held > 300 && changed > 100,
+            "held {held}, changed {changed}"
+        );
+    }
+
+    #[test]
+    fn a_corner_crossing_a_plane_refuses_the_kept_structure() {
+        // A cube on its corner pressed into a big block's top face: the tip is a vertex and the
+        // three edges through it cross the face. Pressed past the next vertex, the structure
+        // changes: the kept one must refuse, and the overlap found again matches the clipping.
+        let (c, big) = (
+            Shape::from_mesh(&cube(0.5)).unwrap(),
+            Shape::from_mesh(&cube(5.0)).unwrap(),
+        );
+        let block = big.posed(&Vec3::zeros(), &UnitQuaternion::identity(), 1.0);
+        let q = UnitQuaternion::from_euler_angles(0.3, 0.5, 0.2);
+        let tilted = c.posed(&Vec3::zeros(), &q, 1.0);
+        let mut heights: Vec<f64> = tilted.vertices.iter().map(|v| v.z).collect();
+        heights.sort_by(f64::total_cmp);
+        let at = |pen: f64| c.posed(&Vec3::new(0.1, 0.2, 5.0 - heights[0] - pen), &q, 1.0);
+        let first = heights[1] - heights[0];
+        let shallow = at(0.5 * first);
+        let (_, s) = overlap_kept(&big, &block, &c, &shallow, &Vec3::z(), None).unwrap();
+        let s = s.expect("a tip in a face has a structure");
+        assert_eq!(s.corner_count(), 4);
+        let near = at(0.9 * first);
+        let pair = Pair::new(&big, &block, &c, &near).unwrap();
+        assert!(s.evaluate(&pair).is_some(), "still one vertex in");
+        let deep = at(1.1 * first);
+        let pair = Pair::new(&big, &block, &c, &deep).unwrap();
+        assert!(s.evaluate(&pair).is_none(), "a second vertex went in");
+        let (o, again) = overlap_kept(&big, &block, &c, &deep, &Vec3::z(), Some(&s)).unwrap();
+        assert_eq!(again.expect("found again").corner_count(), 6);
+        let (clipped, _) = overlap_parts(&big, &block, &c, &deep, &Vec3::z()).unwrap();
+        assert!(
+            (o.volume - clipped.volume).abs() < 1e-12
+                && (o.centroid - clipped.centroid).norm() < 1e-12
+        );
+    }
+
+    #[test]
+    fn faces_pressed_flat_have_no_structure() {
+        // A cube stack: B's bottom face lies on A's top face plane (its corners on A's side
+        // planes too). Degenerate, so left to the clipping.
+        let c = Shape::from_mesh(&cube(0.5)).unwrap();
+        let id = UnitQuaternion::identity();
+        let (a, b) = (
+            c.posed(&Vec3::zeros(), &id, 1.0),
+            c.posed(&Vec3::new(0.0, 0.0, 0.999), &id, 1.0),
+        );
+        let (o, s) = overlap_kept(&c, &a, &c, &b, &Vec3::z(), None).unwrap();
+        assert!(s.is_none());
+        assert!((o.volume - 1e-3).abs() < 1e-12);
+    }
+}
