@@ -9,7 +9,6 @@
 use super::structure::Structure;
 use super::world::{Contact, ContactKey};
 use rayon::prelude::*;
-use std::sync::Arc;
 
 /// Contacts by key, ascending. Iterates like a map: `for (key, contact) in &contacts`.
 ///
@@ -20,7 +19,7 @@ use std::sync::Arc;
 pub struct Contacts {
     keys: Vec<ContactKey>,
     values: Vec<Contact>,
-    kept: Vec<Option<Arc<Structure>>>,
+    kept: Vec<Option<Box<Structure>>>,
 }
 
 impl PartialEq for Contacts {
@@ -39,15 +38,15 @@ impl Contacts {
     ///
     /// # Panics
     /// If the keys are not strictly ascending: a step that builds them otherwise is a bug.
-    /// `contact`: the contact, and the structure it keeps.
+    /// No contact keeps a structure yet ([`Contacts::keep`]).
     pub fn from_sorted<T: Sync>(
         items: &[T],
         par: bool,
         key: impl Fn(&T) -> ContactKey + Sync + Send,
-        contact: impl Fn(&T) -> (Contact, Option<Arc<Structure>>) + Sync + Send,
+        contact: impl Fn(&T) -> Contact + Sync + Send,
     ) -> Contacts {
         let pair = |t: &T| (key(t), contact(t));
-        let (keys, (values, kept)): (Vec<ContactKey>, (Vec<Contact>, Vec<_>)) = if par {
+        let (keys, values): (Vec<ContactKey>, Vec<Contact>) = if par {
             items.par_iter().map(pair).unzip()
         } else {
             items.iter().map(pair).unzip()
@@ -56,7 +55,27 @@ impl Contacts {
             keys.windows(2).all(|w| w[0] < w[1]),
             "contacts must be built in strictly ascending key order"
         );
+        let kept = std::iter::repeat_with(|| None).take(keys.len()).collect();
         Contacts { keys, values, kept }
+    }
+
+    /// The structures the contacts keep, in key order, taken out (none is left kept).
+    pub fn take_kept(&mut self) -> Vec<Option<Box<Structure>>> {
+        let none = std::iter::repeat_with(|| None)
+            .take(self.keys.len())
+            .collect();
+        std::mem::replace(&mut self.kept, none)
+    }
+
+    /// Sets the structures the first `kept.len()` contacts keep, in key order.
+    ///
+    /// # Panics
+    /// With more structures than contacts.
+    pub fn keep(&mut self, kept: impl IntoIterator<Item = Option<Box<Structure>>>) {
+        let mut slots = self.kept.iter_mut();
+        for s in kept {
+            *slots.next().expect("more structures than contacts") = s;
+        }
     }
 
     pub fn len(&self) -> usize {
@@ -83,17 +102,14 @@ impl Contacts {
     }
 
     /// The contact of `key` and the structure it keeps, looked for from position `*at` on (at
-    /// most `key`'s [`Contacts::lower_bound`]), which then moves to `key`'s place: ascending keys
-    /// are found by one walk over the list instead of a search each.
-    pub fn seek(
-        &self,
-        at: &mut usize,
-        key: &ContactKey,
-    ) -> Option<(&Contact, Option<&Arc<Structure>>)> {
+    /// most `key`'s [`Contacts::lower_bound`]), which then moves to `key`'s place (the contact's
+    /// position, when there is one): ascending keys are found by one walk over the list instead
+    /// of a search each.
+    pub fn seek(&self, at: &mut usize, key: &ContactKey) -> Option<(&Contact, Option<&Structure>)> {
         while self.keys.get(*at).is_some_and(|k| k < key) {
             *at += 1;
         }
-        (self.keys.get(*at) == Some(key)).then(|| (&self.values[*at], self.kept[*at].as_ref()))
+        (self.keys.get(*at) == Some(key)).then(|| (&self.values[*at], self.kept[*at].as_deref()))
     }
 
     pub fn contains_key(&self, key: &ContactKey) -> bool {
@@ -197,7 +213,7 @@ mod tests {
             .map(|i| ((Partner::Body(i / 7), i), i as f64))
             .chain((0..300u32).map(|i| ((Partner::Wall(i / 100), i), -(i as f64))))
             .collect();
-        let build = |par| Contacts::from_sorted(&items, par, |t| t.0, |t| (contact(t.1), None));
+        let build = |par| Contacts::from_sorted(&items, par, |t| t.0, |t| contact(t.1));
         let (a, b) = (build(true), build(false));
         assert_eq!(a, b);
         assert_eq!(a.len(), 800);
@@ -211,6 +227,6 @@ mod tests {
     #[should_panic(expected = "ascending key order")]
     fn a_list_out_of_key_order_is_refused() {
         let items = [(Partner::Wall(0), 1u32), (Partner::Body(3), 0)];
-        Contacts::from_sorted(&items, false, |k| *k, |_| (contact(0.0), None));
+        Contacts::from_sorted(&items, false, |k| *k, |_| contact(0.0));
     }
 }

@@ -23,7 +23,6 @@ use super::gjk::{separating_gap, Hints, Points};
 use super::shape::{Posed, Shape};
 use super::structure::{discover, Pair, Structure};
 use crate::math::{bounding_box, Vec3};
-use std::sync::Arc;
 
 /// The overlap of two bodies: volume, centroid, and `S_B` (area vector of B's surface inside A,
 /// outward from B). `normal()` points from A to B.
@@ -525,6 +524,18 @@ pub fn overlap_along(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, axis: &Vec3) 
     overlap_kept(sa, a, sb, b, axis, None).map(|(o, _)| o)
 }
 
+/// What became of a pair's structure ([`overlap_kept`]).
+#[derive(Debug, Default, PartialEq)]
+pub enum Found {
+    /// The kept structure still holds.
+    Kept,
+    /// A new one.
+    New(Box<Structure>),
+    /// None: the overlap is near-degenerate, or of large hulls.
+    #[default]
+    None,
+}
+
 /// [`overlap_along`], also handing back the overlap's structure (see [`super::structure`]) when
 /// it has one, and trying `kept` (the pair's structure from the last step) first. The result is
 /// the same, to the bit, with or without `kept`.
@@ -534,17 +545,14 @@ pub fn overlap_kept(
     sb: &Shape,
     b: &Posed,
     axis: &Vec3,
-    kept: Option<&Arc<Structure>>,
-) -> Option<(Overlap, Option<Arc<Structure>>)> {
-    let kept = kept.and_then(|s| {
-        let o = s.evaluate(&Pair::new(sa, a, sb, b)?)?;
-        Some((o, Some(Arc::clone(s))))
-    });
+    kept: Option<&Structure>,
+) -> Option<(Overlap, Found)> {
+    let kept = kept.and_then(|s| s.evaluate(&Pair::new(sa, a, sb, b)?));
     let (mut o, structure) = match kept {
-        Some(found) => found,
+        Some(o) => (o, Found::Kept),
         None => {
             let (o, _, s) = overlap_parts_with(sa, a, sb, b, axis, true)?;
-            (o, s.map(Arc::new))
+            (o, s.map_or(Found::None, |s| Found::New(Box::new(s))))
         }
     };
     // |S_B| <= SWALLOWED_REL V^(2/3), cubed (no powf per contact).

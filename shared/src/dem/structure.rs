@@ -279,7 +279,7 @@ impl Structure {
 
 #[cfg(test)]
 mod tests {
-    use super::super::overlap::{overlap_kept, overlap_parts};
+    use super::super::overlap::{overlap_kept, overlap_parts, Found};
     use super::*;
     use crate::math::unit_f64;
     use crate::mesh::cube;
@@ -361,7 +361,7 @@ mod tests {
             );
             // The culled candidates of the engine find the same structure as all of them.
             let (kept, found) = overlap_kept(sa, a, sb, b, &axis, None).unwrap();
-            assert_eq!(found.as_deref(), Some(&s), "pose {t}");
+            assert_eq!(found, Found::New(Box::new(s)), "pose {t}");
             assert_eq!(kept.volume, o.volume, "pose {t}");
         }
         // Random poses are not degenerate: nearly every one has a structure.
@@ -390,7 +390,8 @@ mod tests {
         let (mut held, mut changed) = (0, 0);
         for (t, (i, j, a, b)) in poses(&mut rng, 1500).iter().enumerate() {
             let (sa, sb) = (&shapes[*i], &shapes[*j]);
-            let Some((_, Some(s))) = overlap_kept(sa, a, sb, b, &(b.pos - a.pos), None) else {
+            let Some((_, Found::New(s))) = overlap_kept(sa, a, sb, b, &(b.pos - a.pos), None)
+            else {
                 continue;
             };
             let step = sb.radius * 10f64.powf(-4.0 + 3.0 * unit_f64(rng.next_u64()));
@@ -434,7 +435,9 @@ mod tests {
         let first = heights[1] - heights[0];
         let shallow = at(0.5 * first);
         let (_, s) = overlap_kept(&big, &block, &c, &shallow, &Vec3::z(), None).unwrap();
-        let s = s.expect("a tip in a face has a structure");
+        let Found::New(s) = s else {
+            panic!("a tip in a face has a structure: {s:?}");
+        };
         assert_eq!(s.corner_count(), 4);
         let near = at(0.9 * first);
         let pair = Pair::new(&big, &block, &c, &near).unwrap();
@@ -443,7 +446,10 @@ mod tests {
         let pair = Pair::new(&big, &block, &c, &deep).unwrap();
         assert!(s.evaluate(&pair).is_none(), "a second vertex went in");
         let (o, again) = overlap_kept(&big, &block, &c, &deep, &Vec3::z(), Some(&s)).unwrap();
-        assert_eq!(again.expect("found again").corner_count(), 6);
+        let Found::New(again) = again else {
+            panic!("found again: {again:?}");
+        };
+        assert_eq!(again.corner_count(), 6);
         let (clipped, _) = overlap_parts(&big, &block, &c, &deep, &Vec3::z()).unwrap();
         assert!(
             (o.volume - clipped.volume).abs() < 1e-12
@@ -462,7 +468,7 @@ mod tests {
             c.posed(&Vec3::new(0.0, 0.0, 0.999), &id, 1.0),
         );
         let (o, s) = overlap_kept(&c, &a, &c, &b, &Vec3::z(), None).unwrap();
-        assert!(s.is_none());
+        assert_eq!(s, Found::None);
         assert!((o.volume - 1e-3).abs() < 1e-12);
     }
 }

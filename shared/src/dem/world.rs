@@ -24,14 +24,12 @@
 use super::broad::{Aabb, Broad};
 use super::contacts::Contacts;
 use super::gjk::Hints;
-use super::overlap::{centre_line, gap_proof, overlap_kept, GapProof, Overlap};
+use super::overlap::{centre_line, gap_proof, overlap_kept, Found, GapProof, Overlap};
 use super::shape::{Posed, Remade, Shape};
-use super::structure::Structure;
 use super::wall::Wall;
 use crate::math::Vec3;
 use nalgebra::{Unit, UnitQuaternion};
 use rayon::prelude::*;
-use std::sync::Arc;
 
 /// Material and contact parameters (SI units). Defaults are the paper's Table 1.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -285,14 +283,37 @@ impl Placed {
 }
 
 impl Separations {
-    /// The gap proof of pair `(i, j)` from last step.
-    fn get(&self, pair: (u32, u32)) -> Option<&Gap> {
+    /// Where pair `(i, j)`'s proof is or would go: (chunk, position in it).
+    fn lower_bound(&self, pair: (u32, u32)) -> (usize, usize) {
         let k = self
             .0
             .partition_point(|chunk| chunk.last().is_some_and(|last| last.pair < pair));
-        let chunk = self.0.get(k)?;
-        let e = chunk.binary_search_by_key(&pair, |e| e.pair).ok()?;
-        Some(&chunk[e])
+        let e = self
+            .0
+            .get(k)
+            .map_or(0, |c| c.partition_point(|g| g.pair < pair));
+        (k, e)
+    }
+
+    /// The gap proof of `pair` from last step, looked for from `*at` on (at most `pair`'s
+    /// [`Separations::lower_bound`]), which then moves to `pair`'s place: the pairs of a chunk
+    /// of the narrow phase, ascending, find theirs by one walk.
+    fn seek(&self, at: &mut (usize, usize), pair: (u32, u32)) -> Option<&Gap> {
+        loop {
+            let chunk = self.0.get(at.0)?;
+            match chunk.get(at.1) {
+                Some(g) if g.pair < pair => at.1 += 1,
+                Some(g) => return (g.pair == pair).then_some(g),
+                None => *at = (at.0 + 1, 0),
+            }
+        }
+    }
+
+    /// The gap proof of pair `(i, j)` from last step.
+    #[cfg(test)]
+    fn get(&self, pair: (u32, u32)) -> Option<&Gap> {
+        let mut at = self.lower_bound(pair);
+        self.seek(&mut at, pair)
     }
 }
 
@@ -306,8 +327,10 @@ struct Touch {
     node_weights: Vec<(u32, f64)>,
     /// Velocity of the partner's surface at the contact point.
     wall_velocity: Vec3,
-    /// The overlap's structure, kept for the next step.
-    kept: Option<Arc<Structure>>,
+    /// The overlap's structure, to keep for the next step: `Found::Kept` is the one the contact
+    /// kept, at `at` in the last step's list.
+    kept: Found,
+    at: usize,
 }
 
 impl World {
@@ -547,7 +570,8 @@ impl World {
             slip_energy,
             node_weights: Vec::new(),
             wall_velocity: va,
-            kept: None,
+            kept: Found::None,
+            at: 0,
         }
     }
 
@@ -575,7 +599,8 @@ impl World {
         let pairs = self.broad.pairs(&boxes, par);
         self.times.broad += lap();
         // `at`: where this chunk's walk over the contact list is (see `Contacts::seek`).
-        let narrow = |&(i, j): &(u32, u32), at: &mut usize| {
+        // `gap_at`: the same over the gap proofs (`Separations::seek`).
+        let narrow = |&(i, j): &(u32, u32), at: &mut usize, gap_at: &mut (usize, usize)| {
             let (bi, bj) = (&self.bodies[i as usize], &self.bodies[j as usize]);
             if bi.fixed && bj.fixed {
                 return None;
@@ -596,7 +621,7 @@ impl World {
                 }
                 None => {
                     let line = centre_line(pi, pj);
-                    let last = self.separations.get((i, j));
+                    let last = self.separations.seek(gap_at, (i, j));
                     if let Some(gap) = last {
                         // Still apart when the two bodies' motion since the proof is less than
                         // its spare distance: the pair is then more than the proof's margin
@@ -623,7 +648,7 @@ impl World {
             let va = bi.velocity_at(&o.centroid);
             let last = last.map(|(c, _)| c);
             let mut touch = self.touch(key, last, &o, va, self.material.friction);
-            touch.kept = kept;
+            (touch.kept, touch.at) = (kept, *at);
             Some(Outcome::Touch(touch))
         };
         // Each chunk of pairs keeps its own touches and gaps, so no thread copies another's
@@ -632,10 +657,16 @@ impl World {
         let contacts = &self.contacts;
         let mut chunks = map_chunks_maybe_par(&pairs, par, |chunk| {
             let (mut touches, mut apart) = (Vec::new(), Vec::new());
-            let mut at = chunk
-                .first()
-                .map_or(0, |&(i, j)| contacts.lower_bound(&(Partner::Body(i), j)));
-            for outcome in chunk.iter().filter_map(|pair| narrow(pair, &mut at)) {
+            let (mut at, mut gap_at) = chunk.first().map_or((0, (0, 0)), |&(i, j)| {
+                (
+                    contacts.lower_bound(&(Partner::Body(i), j)),
+                    self.separations.lower_bound((i, j)),
+                )
+            });
+            for outcome in chunk
+                .iter()
+                .filter_map(|pair| narrow(pair, &mut at, &mut gap_at))
+            {
                 match outcome {
                     Outcome::Touch(t) => touches.push(t),
                     Outcome::Apart(gap) => apart.push(gap),
@@ -729,12 +760,20 @@ impl World {
             self.energy.friction += t.slip_energy;
         }
         let mean_contact_force = contact_force / touches.len() as f64;
-        self.contacts = Contacts::from_sorted(
-            &touches,
-            par,
-            |t| t.key,
-            |t| (t.contact.clone(), t.kept.clone()),
-        );
+        let mut last_kept = self.contacts.take_kept();
+        self.contacts = Contacts::from_sorted(&touches, par, |t| t.key, |t| t.contact.clone());
+        drop(touches);
+        // The structures move on with their contacts (body pairs come first in key order).
+        if self.keep_structures {
+            let kept = chunks.iter_mut().flat_map(|(t, _)| t.iter_mut()).map(|t| {
+                match std::mem::take(&mut t.kept) {
+                    Found::Kept => last_kept[t.at].take(),
+                    Found::New(s) => Some(s),
+                    Found::None => None,
+                }
+            });
+            self.contacts.keep(kept);
+        }
         self.energy.elastic = elastic;
         self.energy.wall_work += wall_power * dt;
         self.times.assembly += lap();
