@@ -521,7 +521,7 @@ pub fn centre_line(a: &Posed, b: &Posed) -> Vec3 {
 /// [`overlap`] with the culling slab across `axis` (any non-zero vector; best the last contact
 /// normal from A to B). The result does not depend on the axis beyond round-off.
 pub fn overlap_along(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, axis: &Vec3) -> Option<Overlap> {
-    overlap_kept(sa, a, sb, b, axis, None).map(|(o, _)| o)
+    overlap_kept(sa, a, sb, b, axis, None, true).map(|(o, _)| o)
 }
 
 /// What became of a pair's structure ([`overlap_kept`]).
@@ -538,7 +538,8 @@ pub enum Found {
 
 /// [`overlap_along`], also handing back the overlap's structure (see [`super::structure`]) when
 /// it has one, and trying `kept` (the pair's structure from the last step) first. The result is
-/// the same, to the bit, with or without `kept`.
+/// the same, to the bit, with or without `kept`. Without `structured`, only the clipping is
+/// used (no structure is looked for, `kept` is ignored).
 pub fn overlap_kept(
     sa: &Shape,
     a: &Posed,
@@ -546,12 +547,15 @@ pub fn overlap_kept(
     b: &Posed,
     axis: &Vec3,
     kept: Option<&Structure>,
+    structured: bool,
 ) -> Option<(Overlap, Found)> {
-    let kept = kept.and_then(|s| s.evaluate(&Pair::new(sa, a, sb, b)?));
+    let kept = kept
+        .filter(|_| structured)
+        .and_then(|s| s.evaluate(&Pair::new(sa, a, sb, b)?));
     let (mut o, structure) = match kept {
         Some(o) => (o, Found::Kept),
         None => {
-            let (o, _, s) = overlap_parts_with(sa, a, sb, b, axis, true)?;
+            let (o, _, s) = overlap_parts_with(sa, a, sb, b, axis, structured)?;
             (o, s.map_or(Found::None, |s| Found::New(Box::new(s))))
         }
     };

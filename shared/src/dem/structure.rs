@@ -239,7 +239,14 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
                 continue;
             };
             if pair.large[1 - side as usize] {
-                // Checked here against every plane, and later by its clearance.
+                // Checked here against every plane, and later by its clearance. First the
+                // faces that meet the slab (most vertices in the slab fail one of those).
+                if !faces[1 - side as usize]
+                    .iter()
+                    .all(|&f| pair.vertex_inside(1 - side, f, &p))
+                {
+                    continue;
+                }
                 let planes =
                     planes_of[1 - side as usize].get_or_insert_with(|| pair.all_planes(1 - side));
                 let (mut far, listed) = (f64::INFINITY, near.len());
@@ -247,8 +254,8 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
                     let inside = d - n.dot(&p);
                     if inside < pair.near {
                         near.push((c, f as u32));
-                    } else {
-                        far = far.min(inside);
+                    } else if inside < far {
+                        far = inside;
                     }
                 }
                 if !near[listed..]
@@ -509,7 +516,7 @@ mod tests {
                 "pose {t}: structure {o:?}, clipped {clipped:?}"
             );
             // The culled candidates of the engine find the same structure as all of them.
-            let (kept, found) = overlap_kept(sa, a, sb, b, &axis, None).unwrap();
+            let (kept, found) = overlap_kept(sa, a, sb, b, &axis, None, true).unwrap();
             assert_eq!(found, Found::New(Box::new(s)), "pose {t}");
             assert_eq!(kept.volume, o.volume, "pose {t}");
         }
@@ -539,7 +546,7 @@ mod tests {
         let (mut held, mut changed) = (0, 0);
         for (t, (i, j, a, b)) in poses(&mut rng, 1500).iter().enumerate() {
             let (sa, sb) = (&shapes[*i], &shapes[*j]);
-            let Some((_, Found::New(s))) = overlap_kept(sa, a, sb, b, &(b.pos - a.pos), None)
+            let Some((_, Found::New(s))) = overlap_kept(sa, a, sb, b, &(b.pos - a.pos), None, true)
             else {
                 continue;
             };
@@ -548,8 +555,8 @@ mod tests {
                 rotation(&mut rng, step / sb.radius) * UnitQuaternion::from_rotation_matrix(&b.rot);
             let moved = sb.posed(&(b.pos + direction(&mut rng) * step), &q, 1.0);
             let axis = moved.pos - a.pos;
-            let fresh = overlap_kept(sa, a, sb, &moved, &axis, None);
-            let kept = overlap_kept(sa, a, sb, &moved, &axis, Some(&s));
+            let fresh = overlap_kept(sa, a, sb, &moved, &axis, None, true);
+            let kept = overlap_kept(sa, a, sb, &moved, &axis, Some(&s), true);
             assert_eq!(
                 fresh.as_ref().map(|f| f.0),
                 kept.as_ref().map(|k| k.0),
@@ -612,7 +619,7 @@ mod tests {
             let press = sb.radius * 10f64.powf(-4.0 + 2.0 * unit_f64(rng.next_u64()));
             let b = at(hi - press);
             let (clipped, _) = overlap_parts(sa, &a, sb, &b, &dir).unwrap();
-            let Some((o, Found::New(s))) = overlap_kept(sa, &a, sb, &b, &dir, None) else {
+            let Some((o, Found::New(s))) = overlap_kept(sa, &a, sb, &b, &dir, None, true) else {
                 continue;
             };
             structured += 1;
@@ -630,8 +637,8 @@ mod tests {
                     &(turn * q),
                     1.0,
                 );
-                let fresh = overlap_kept(sa, &a, sb, &moved, &dir, None).map(|f| f.0);
-                let kept = overlap_kept(sa, &a, sb, &moved, &dir, Some(&s)).map(|k| k.0);
+                let fresh = overlap_kept(sa, &a, sb, &moved, &dir, None, true).map(|f| f.0);
+                let kept = overlap_kept(sa, &a, sb, &moved, &dir, Some(&s), true).map(|k| k.0);
                 assert_eq!(fresh, kept, "trial {t}, step {step}");
                 match Pair::new(sa, &a, sb, &moved).and_then(|p| s.evaluate(&p)) {
                     Some(_) => held += 1,
@@ -663,7 +670,7 @@ mod tests {
         let at = |pen: f64| c.posed(&Vec3::new(0.1, 0.2, 5.0 - heights[0] - pen), &q, 1.0);
         let first = heights[1] - heights[0];
         let shallow = at(0.5 * first);
-        let (_, s) = overlap_kept(&big, &block, &c, &shallow, &Vec3::z(), None).unwrap();
+        let (_, s) = overlap_kept(&big, &block, &c, &shallow, &Vec3::z(), None, true).unwrap();
         let Found::New(s) = s else {
             panic!("a tip in a face has a structure: {s:?}");
         };
@@ -674,7 +681,7 @@ mod tests {
         let deep = at(1.1 * first);
         let pair = Pair::new(&big, &block, &c, &deep).unwrap();
         assert!(s.evaluate(&pair).is_none(), "a second vertex went in");
-        let (o, again) = overlap_kept(&big, &block, &c, &deep, &Vec3::z(), Some(&s)).unwrap();
+        let (o, again) = overlap_kept(&big, &block, &c, &deep, &Vec3::z(), Some(&s), true).unwrap();
         let Found::New(again) = again else {
             panic!("found again: {again:?}");
         };
@@ -696,7 +703,7 @@ mod tests {
             c.posed(&Vec3::zeros(), &id, 1.0),
             c.posed(&Vec3::new(0.0, 0.0, 0.999), &id, 1.0),
         );
-        let (o, s) = overlap_kept(&c, &a, &c, &b, &Vec3::z(), None).unwrap();
+        let (o, s) = overlap_kept(&c, &a, &c, &b, &Vec3::z(), None, true).unwrap();
         assert_eq!(s, Found::None);
         assert!((o.volume - 1e-3).abs() < 1e-12);
     }

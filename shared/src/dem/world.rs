@@ -617,7 +617,7 @@ impl World {
             let (o, kept) = match last {
                 Some((c, kept)) => {
                     let kept = kept.filter(|_| self.keep_structures);
-                    overlap_kept(si, pi, sj, pj, &c.normal, kept)
+                    overlap_kept(si, pi, sj, pj, &c.normal, kept, true)
                 }
                 None => {
                     let line = centre_line(pi, pj);
@@ -642,7 +642,10 @@ impl World {
                             placed: [Placed::of(bi), Placed::of(bj)],
                         }));
                     }
-                    overlap_kept(si, pi, sj, pj, &line, None)
+                    // A new contact is clipped: finding a structure costs more than that,
+                    // and pays only for contacts that last (the rule depends on the state
+                    // alone, so a restart takes the same path).
+                    overlap_kept(si, pi, sj, pj, &line, None, false)
                 }
             }?;
             let va = bi.velocity_at(&o.centroid);
