@@ -659,7 +659,12 @@ impl World {
         // then referenced in pair order.
         let contacts = &self.contacts;
         let mut chunks = map_chunks_maybe_par(&pairs, par, |chunk| {
-            let (mut touches, mut apart) = (Vec::new(), Vec::new());
+            // Room for every pair in either list: growing them by doubling (realloc copies of
+            // 200-byte items) was 6 % of a step's instructions on the 2000 I_P bed.
+            let (mut touches, mut apart) = (
+                Vec::with_capacity(chunk.len()),
+                Vec::with_capacity(chunk.len()),
+            );
             let (mut at, mut gap_at) = chunk.first().map_or((0, (0, 0)), |&(i, j)| {
                 (
                     contacts.lower_bound(&(Partner::Body(i), j)),
