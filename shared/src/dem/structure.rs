@@ -17,9 +17,9 @@
 //! some 1 500 planes) the same holds by local checks: an edge's crossing must lie inside its
 //! face's polygon (then it is on the body's surface), and a vertex inside the planes it was
 //! nearer than [`NEAR_REL`] x size to when found, while the bodies have moved less since than
-//! its clearance from all the others. A structure is only made ([`discover`]) when, besides, each ring's
-//! consecutive corners share exactly one plane other than the ring's own, and that plane has a
-//! ring too. Then each ring is the whole of its face inside the overlap (a convex polygon inside
+//! its clearance from all the others. A structure is only made ([`discover`]) when, besides,
+//! each ring's consecutive corners share exactly one plane other than the ring's own, and that
+//! plane has a ring too. Then each ring is the whole of its face inside the overlap (a convex polygon inside
 //! another whose every edge lies on a supporting line of the other is the other), and the rings
 //! close the surface. When a corner fails, the structure has changed (a corner crossed a plane)
 //! and the pair goes back to [`discover`].
@@ -45,7 +45,7 @@ const MARGIN_REL: f64 = 1e-9;
 
 /// A vertex corner inside a large body is checked at every step against the planes it was
 /// nearer than this fraction of the pair's size to when found, and against the others by the
-/// bodies' motion since (a bed at rest moves ~1e-9 x size a step).
+/// bodies' motion since (on the Ab_3 500 bed at rest, 0.13 % of contact-steps use that up).
 const NEAR_REL: f64 = 5e-3;
 
 /// A corner of the overlap polyhedron, by what makes it. `side` 0 is body A, 1 body B.
