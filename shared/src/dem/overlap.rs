@@ -531,7 +531,7 @@ pub enum Found {
     Kept,
     /// A new one.
     New(Box<Structure>),
-    /// None: the overlap is near-degenerate, or of large hulls.
+    /// None: the overlap is near-degenerate, or no structure was looked for.
     #[default]
     None,
 }

@@ -318,6 +318,7 @@ impl Shape {
     ) {
         let r = rot.to_rotation_matrix();
         out.rot = r;
+        out.orientation = *rot;
         out.pos = *pos;
         out.scale = scale;
         out.vertices.clear();
@@ -403,8 +404,9 @@ pub struct Posed {
     pub offsets: Vec<f64>,
     pub lo: Vec3,
     pub hi: Vec3,
-    /// The pose: world = pos + rot (scale x).
+    /// The pose: world = pos + rot (scale x); `orientation` is `rot` as the body's quaternion.
     pub rot: Rotation3<f64>,
+    pub orientation: UnitQuaternion<f64>,
     pub pos: Vec3,
     pub scale: f64,
 }
@@ -421,6 +423,21 @@ impl Posed {
             }
         }
     }
+}
+
+/// A bound on how far any point within `radius` of a body's centroid can be from where it was
+/// when the body's centroid was at `from.0` with orientation `from.1`, now that they are `to`:
+/// the centroid's displacement plus the chord of the rotation between, `2 r sin(theta / 2)`,
+/// which is `2 r` times the length of the vector part of `to.1 from.1^-1`; both lengths taken as
+/// the sums of their components' magnitudes (at most sqrt 3 times more, and no square roots on
+/// the per-pair paths that use it).
+pub fn motion_bound(
+    from: (&Vec3, &UnitQuaternion<f64>),
+    to: (&Vec3, &UnitQuaternion<f64>),
+    radius: f64,
+) -> f64 {
+    let turn = to.1 * from.1.inverse();
+    (to.0 - from.0).lp_norm(1) + 2.0 * radius * turn.imag().lp_norm(1)
 }
 
 /// The world offset of a face plane of offset `d` (shape frame) and world normal `n`.

@@ -34,9 +34,9 @@
 //! construction of [`super::overlap`] handles them, every step.
 
 use super::overlap::{Acc, Overlap};
-use super::shape::{Posed, Shape, CLIMB_MIN};
+use super::shape::{motion_bound, Posed, Shape, CLIMB_MIN};
 use crate::math::Vec3;
-use nalgebra::Matrix3;
+use nalgebra::UnitQuaternion;
 
 /// Corners closer than this fraction of the pair's size to a plane they are not on, or to the
 /// end of their edge, are too close to a change of structure to be trusted to a kept one.
@@ -73,8 +73,8 @@ pub struct Structure {
     /// ... and the least clearance (distance inside) they had from all the other planes, when
     /// found (those are covered by the motion since); infinite without such corners.
     clearance: f64,
-    /// Where the bodies were when it was found: centroid, rotation, scale.
-    found_at: [(Vec3, Matrix3<f64>, f64); 2],
+    /// Where the bodies were when it was found: centroid, orientation, scale.
+    found_at: [(Vec3, UnitQuaternion<f64>, f64); 2],
 }
 
 /// Two posed bodies and the margin their corners are checked with.
@@ -116,7 +116,11 @@ impl<'a> Pair<'a> {
 
     /// True when `p` is inside the plane of face `f` of body `side` by the margin.
     fn vertex_inside(&self, side: u8, f: u32, p: &Vec3) -> bool {
-        let (n, d) = self.plane(side, f);
+        self.inside_plane(&self.plane(side, f), p)
+    }
+
+    /// True when `p` is inside the plane `(n, d)` by the margin.
+    fn inside_plane(&self, (n, d): &(Vec3, f64), p: &Vec3) -> bool {
         n.dot(p) - d < -self.margin
     }
 
@@ -126,10 +130,9 @@ impl<'a> Pair<'a> {
         (0..count).map(|f| self.plane(side, f)).collect()
     }
 
-    /// A bound on how far any point of either body (or inside its bounding sphere) has moved
-    /// since `found_at`: the centroid's displacement plus the bounding radius times the change
-    /// of the rotation matrix (entry sums, no square roots); infinite when a scale changed.
-    fn moved_since(&self, found_at: &[(Vec3, Matrix3<f64>, f64); 2]) -> f64 {
+    /// The sum of the two bodies' [`motion_bound`]s since `found_at` (for any point within
+    /// their bounding spheres); infinite when a scale changed.
+    fn moved_since(&self, found_at: &[(Vec3, UnitQuaternion<f64>, f64); 2]) -> f64 {
         (0..2)
             .map(|k| {
                 let (p, (pos, rot, scale)) = (self.posed[k], &found_at[k]);
@@ -137,7 +140,7 @@ impl<'a> Pair<'a> {
                     return f64::INFINITY;
                 }
                 let radius = self.shapes[k].radius * p.scale;
-                (p.pos - pos).lp_norm(1) + radius * (p.rot.matrix() - rot).lp_norm(1)
+                motion_bound((pos, rot), (&p.pos, &p.orientation), radius)
             })
             .sum()
     }
@@ -231,37 +234,43 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
     let mut near: Vec<(Corner, u32)> = Vec::new();
     let mut planes_of: [Option<Vec<(Vec3, f64)>>; 2] = [None, None];
     let (mut ends, mut dist): (Vec<u32>, Vec<f64>) = (Vec::new(), Vec::new());
+    // The planes of each body's faces that meet the slab.
+    let slab = |side: u8| -> Vec<(Vec3, f64)> {
+        faces[side as usize]
+            .iter()
+            .map(|&f| pair.plane(side, f))
+            .collect()
+    };
+    let slab = [slab(0), slab(1)];
     for side in 0..2u8 {
         let s = pair.shapes[side as usize];
+        let (others, planes) = (faces[1 - side as usize], &slab[1 - side as usize]);
         for &i in reach[side as usize] {
             let c = Corner::Vertex { side, i };
             let Some(p) = pair.corner(c) else {
                 continue;
             };
             if pair.large[1 - side as usize] {
-                // Checked here against every plane, and later by its clearance. First the
-                // faces that meet the slab (most vertices in the slab fail one of those).
-                if !faces[1 - side as usize]
-                    .iter()
-                    .all(|&f| pair.vertex_inside(1 - side, f, &p))
-                {
+                // Checked here against every plane (with the test `Pair::vertex_inside` puts to
+                // the near ones later), and later by its clearance. First the faces that meet
+                // the slab: most vertices in the slab fail one of those.
+                if !planes.iter().all(|pl| pair.inside_plane(pl, &p)) {
                     continue;
                 }
-                let planes =
+                let all =
                     planes_of[1 - side as usize].get_or_insert_with(|| pair.all_planes(1 - side));
-                let (mut far, listed) = (f64::INFINITY, near.len());
-                for (f, (n, d)) in planes.iter().enumerate() {
+                let (listed, mut far) = (near.len(), f64::INFINITY);
+                let inside_all = all.iter().enumerate().all(|(f, pl)| {
+                    let (n, d) = pl;
                     let inside = d - n.dot(&p);
                     if inside < pair.near {
                         near.push((c, f as u32));
                     } else if inside < far {
                         far = inside;
                     }
-                }
-                if !near[listed..]
-                    .iter()
-                    .all(|&(_, f)| pair.vertex_inside(1 - side, f, &p))
-                {
+                    pair.inside_plane(pl, &p)
+                });
+                if !inside_all {
                     near.truncate(listed);
                     continue;
                 }
@@ -281,8 +290,6 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
         edges.dedup();
         // Each end's distance to each candidate plane, once: an edge is a candidate for a
         // plane it crosses (the check in `Pair::corner` decides).
-        let others = faces[1 - side as usize];
-        let planes: Vec<(Vec3, f64)> = others.iter().map(|&f| pair.plane(1 - side, f)).collect();
         ends.clear();
         ends.extend(edges.iter().flat_map(|&(i, j)| [i, j]));
         ends.sort_unstable();
@@ -365,7 +372,7 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
         rings.extend(ring.iter().map(|&(_, k)| k));
         pieces.push((side, face, rings.len() as u32));
     }
-    let at = |p: &Posed| (p.pos, *p.rot.matrix(), p.scale);
+    let at = |p: &Posed| (p.pos, p.orientation, p.scale);
     let corners: Vec<Corner> = found.into_iter().map(|(c, _)| c).collect();
     let mut near: Vec<(u16, u32)> = near
         .into_iter()

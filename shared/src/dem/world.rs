@@ -25,7 +25,7 @@ use super::broad::{Aabb, Broad};
 use super::contacts::Contacts;
 use super::gjk::Hints;
 use super::overlap::{centre_line, gap_proof, overlap_kept, Found, GapProof, Overlap};
-use super::shape::{Posed, Remade, Shape};
+use super::shape::{motion_bound, Posed, Remade, Shape};
 use super::wall::Wall;
 use crate::math::Vec3;
 use nalgebra::{Unit, UnitQuaternion};
@@ -268,17 +268,13 @@ impl Placed {
     }
 
     /// A bound on how far any point of `b` (bounding radius `radius` about its centroid) can be
-    /// from where it was here: the centroid's displacement plus the chord of the rotation
-    /// between, `2 r sin(theta / 2)`, which is `2 r` times the length of the vector part of
-    /// `rot_b rot_here^-1`; both lengths taken as the sums of their components' magnitudes
-    /// (at most sqrt 3 times more, and no square roots on this per-pair path). Infinite when
-    /// the body changed its shape or size since.
+    /// from where it was here ([`motion_bound`]). Infinite when the body changed its shape or
+    /// size since.
     fn moved(&self, b: &Body, radius: f64) -> f64 {
         if b.scale != self.scale || b.shape != self.shape {
             return f64::INFINITY;
         }
-        let turn = b.rot * self.rot.inverse();
-        (b.pos - self.pos).lp_norm(1) + 2.0 * radius * turn.imag().lp_norm(1)
+        motion_bound((&self.pos, &self.rot), (&b.pos, &b.rot), radius)
     }
 }
 
