@@ -6,7 +6,7 @@
 //! cache). On a 2000-particle bed the `BTreeMap` this replaces took 4 to 5 % of a step on 2
 //! threads, all of it serial.
 
-use super::structure::Structure;
+use super::structure::Packed;
 use super::world::{Contact, ContactKey};
 use rayon::prelude::*;
 
@@ -14,12 +14,44 @@ use rayon::prelude::*;
 ///
 /// Each contact may also keep its overlap's structure ([`super::structure`]), to start the next
 /// step's contact geometry from. That is not state (the result is the same without it): it is
-/// left out of comparisons, and a contact inserted by hand has none.
+/// left out of comparisons, and a contact inserted by hand has none. The structures' words lie
+/// in one buffer, in key order ([`super::structure::Structure`] tells why).
 #[derive(Clone, Debug, Default)]
 pub struct Contacts {
     keys: Vec<ContactKey>,
     values: Vec<Contact>,
-    kept: Vec<Option<Box<Structure>>>,
+    kept: Kept,
+}
+
+/// Structures in one buffer of words: per contact, where its words start and how many there
+/// are (none: no structure).
+#[derive(Clone, Debug, Default)]
+pub struct Kept {
+    words: Vec<u32>,
+    spans: Vec<(u32, u32)>,
+}
+
+impl Kept {
+    /// Room for `count` contacts, none keeping a structure.
+    fn none(count: usize) -> Kept {
+        Kept {
+            words: Vec::new(),
+            spans: vec![(0, 0); count],
+        }
+    }
+
+    /// The buffer, for the next [`Contacts::keep`] to fill (a new buffer each step faulted in
+    /// 2 MiB of fresh pages on the 2000 I_P bed).
+    pub fn into_buffer(self) -> Vec<u32> {
+        self.words
+    }
+
+    /// The structure of contact `k`, if it keeps one.
+    pub fn get(&self, k: usize) -> Option<Packed<'_>> {
+        let &(start, len) = self.spans.get(k)?;
+        let (start, len) = (start as usize, len as usize);
+        (len > 0).then(|| Packed::new(&self.words[start..start + len]))
+    }
 }
 
 impl PartialEq for Contacts {
@@ -55,26 +87,38 @@ impl Contacts {
             keys.windows(2).all(|w| w[0] < w[1]),
             "contacts must be built in strictly ascending key order"
         );
-        let kept = std::iter::repeat_with(|| None).take(keys.len()).collect();
+        let kept = Kept::none(keys.len());
         Contacts { keys, values, kept }
     }
 
     /// The structures the contacts keep, in key order, taken out (none is left kept).
-    pub fn take_kept(&mut self) -> Vec<Option<Box<Structure>>> {
-        let none = std::iter::repeat_with(|| None)
-            .take(self.keys.len())
-            .collect();
-        std::mem::replace(&mut self.kept, none)
+    pub fn take_kept(&mut self) -> Kept {
+        std::mem::replace(&mut self.kept, Kept::none(self.keys.len()))
     }
 
     /// Sets the structures the first `kept.len()` contacts keep, in key order.
     ///
     /// # Panics
     /// With more structures than contacts.
-    pub fn keep(&mut self, kept: impl IntoIterator<Item = Option<Box<Structure>>>) {
-        let mut slots = self.kept.iter_mut();
+    pub fn keep<'a>(
+        &mut self,
+        kept: impl IntoIterator<Item = Option<&'a [u32]>>,
+        buffer: Vec<u32>,
+    ) {
+        let Kept { words, spans } = &mut self.kept;
+        *words = buffer;
+        words.clear();
+        let mut slots = spans.iter_mut();
         for s in kept {
-            *slots.next().expect("more structures than contacts") = s;
+            let slot = slots.next().expect("more structures than contacts");
+            *slot = match s {
+                Some(w) if !w.is_empty() => {
+                    let start = words.len() as u32;
+                    words.extend_from_slice(w);
+                    (start, w.len() as u32)
+                }
+                _ => (0, 0),
+            };
         }
     }
 
@@ -89,7 +133,7 @@ impl Contacts {
     pub fn clear(&mut self) {
         self.keys.clear();
         self.values.clear();
-        self.kept.clear();
+        self.kept = Kept::default();
     }
 
     pub fn get(&self, key: &ContactKey) -> Option<&Contact> {
@@ -105,11 +149,11 @@ impl Contacts {
     /// most `key`'s [`Contacts::lower_bound`]), which then moves to `key`'s place (the contact's
     /// position, when there is one): ascending keys are found by one walk over the list instead
     /// of a search each.
-    pub fn seek(&self, at: &mut usize, key: &ContactKey) -> Option<(&Contact, Option<&Structure>)> {
+    pub fn seek(&self, at: &mut usize, key: &ContactKey) -> Option<(&Contact, Option<Packed<'_>>)> {
         while self.keys.get(*at).is_some_and(|k| k < key) {
             *at += 1;
         }
-        (self.keys.get(*at) == Some(key)).then(|| (&self.values[*at], self.kept[*at].as_deref()))
+        (self.keys.get(*at) == Some(key)).then(|| (&self.values[*at], self.kept.get(*at)))
     }
 
     pub fn contains_key(&self, key: &ContactKey) -> bool {
@@ -120,13 +164,13 @@ impl Contacts {
     pub fn insert(&mut self, key: ContactKey, contact: Contact) -> Option<Contact> {
         match self.keys.binary_search(&key) {
             Ok(k) => {
-                self.kept[k] = None;
+                self.kept.spans[k] = (0, 0);
                 Some(std::mem::replace(&mut self.values[k], contact))
             }
             Err(k) => {
                 self.keys.insert(k, key);
                 self.values.insert(k, contact);
-                self.kept.insert(k, None);
+                self.kept.spans.insert(k, (0, 0));
                 None
             }
         }

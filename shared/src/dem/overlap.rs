@@ -21,7 +21,7 @@
 
 use super::gjk::{separating_gap, Hints, Points};
 use super::shape::{Posed, Shape};
-use super::structure::{discover, Pair, Structure};
+use super::structure::{discover, Packed, Pair, Structure};
 use crate::math::{bounding_box, Vec3};
 
 /// The overlap of two bodies: volume, centroid, and `S_B` (area vector of B's surface inside A,
@@ -530,7 +530,7 @@ pub enum Found {
     /// The kept structure still holds.
     Kept,
     /// A new one.
-    New(Box<Structure>),
+    New(Structure),
     /// None: the overlap is near-degenerate, or no structure was looked for.
     #[default]
     None,
@@ -546,7 +546,7 @@ pub fn overlap_kept(
     sb: &Shape,
     b: &Posed,
     axis: &Vec3,
-    kept: Option<&Structure>,
+    kept: Option<Packed>,
     structured: bool,
 ) -> Option<(Overlap, Found)> {
     let kept = kept
@@ -556,7 +556,7 @@ pub fn overlap_kept(
         Some(o) => (o, Found::Kept),
         None => {
             let (o, _, s) = overlap_parts_with(sa, a, sb, b, axis, structured)?;
-            (o, s.map_or(Found::None, |s| Found::New(Box::new(s))))
+            (o, s.map_or(Found::None, Found::New))
         }
     };
     // |S_B| <= SWALLOWED_REL V^(2/3), cubed (no powf per contact).

@@ -58,9 +58,33 @@ pub enum Corner {
     Edge { side: u8, i: u32, j: u32, face: u32 },
 }
 
-/// The structure of one overlap: its corners (ascending) and the rings of its pieces.
+/// The structure of one overlap: its corners (ascending) and the rings of its pieces, laid out
+/// in one run of words ([`Packed`]) so that a contact list can keep all its structures in one
+/// buffer, in contact order: evaluated in place, every step, they are read front to back
+/// (kept as five allocations each, scattered over the heap, they cost the narrow phase a fifth
+/// more on the 2000 I_P bed, waiting for memory).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Structure {
+    words: Vec<u32>,
+}
+
+/// A [`Structure`]'s words, read in place: a header of [`HEADER`] words (the counts of
+/// corners, near planes, pieces and ring entries; the clearance), where the bodies were when it
+/// was found ([`FOUND_AT`] words, only with a finite clearance: nothing else reads it), then 4
+/// words per corner, 2 per near plane, 3 per piece and 1 per ring entry.
+#[derive(Clone, Copy, Debug)]
+pub struct Packed<'a> {
+    words: &'a [u32],
+}
+
+/// Words of the header: 4 counts and the clearance (2).
+const HEADER: usize = 4 + 2;
+
+/// Words of `found_at`: 2 x 8 numbers of 2 words.
+const FOUND_AT: usize = 32;
+
+/// The parts of a structure, as [`discover`] makes them.
+struct Parts {
     corners: Vec<Corner>,
     /// Per piece, ascending by (side, face): the body, its face, and where the piece's ring ends
     /// in `rings` (it starts where the last one ended).
@@ -379,51 +403,196 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
         .map(|(c, f)| (corners.binary_search(&c).unwrap_or_default() as u16, f))
         .collect();
     near.sort_unstable();
-    Some(Structure {
+    Some(Structure::pack(&Parts {
         corners,
         near,
         pieces,
         rings,
         clearance,
         found_at: [at(pair.posed[0]), at(pair.posed[1])],
-    })
+    }))
+}
+
+/// The two words of `x`.
+fn split(x: f64) -> [u32; 2] {
+    let bits = x.to_bits();
+    [bits as u32, (bits >> 32) as u32]
+}
+
+impl Structure {
+    fn pack(p: &Parts) -> Structure {
+        let found_at = if p.clearance.is_finite() { FOUND_AT } else { 0 };
+        let len = HEADER
+            + found_at
+            + 4 * p.corners.len()
+            + 2 * p.near.len()
+            + 3 * p.pieces.len()
+            + p.rings.len();
+        let mut w = Vec::with_capacity(len);
+        let count = |n: usize| n as u32;
+        w.extend([
+            count(p.corners.len()),
+            count(p.near.len()),
+            count(p.pieces.len()),
+            count(p.rings.len()),
+        ]);
+        w.extend(split(p.clearance));
+        for (pos, rot, scale) in p.found_at.iter().filter(|_| found_at > 0) {
+            let q = rot.quaternion().coords;
+            for x in [pos.x, pos.y, pos.z, q.x, q.y, q.z, q.w, *scale] {
+                w.extend(split(x));
+            }
+        }
+        for c in &p.corners {
+            w.extend(match *c {
+                Corner::Vertex { side, i } => [u32::from(side), i, 0, 0],
+                Corner::Edge { side, i, j, face } => [u32::from(side) | 2, i, j, face],
+            });
+        }
+        w.extend(p.near.iter().flat_map(|&(k, f)| [u32::from(k), f]));
+        w.extend(
+            p.pieces
+                .iter()
+                .flat_map(|&(side, face, end)| [u32::from(side), face, end]),
+        );
+        w.extend(p.rings.iter().map(|&k| u32::from(k)));
+        debug_assert_eq!(w.len(), len);
+        Structure { words: w }
+    }
+
+    /// The words, to be read in place.
+    pub fn packed(&self) -> Packed<'_> {
+        Packed { words: &self.words }
+    }
+
+    /// [`Packed::evaluate`].
+    pub fn evaluate(&self, pair: &Pair) -> Option<Overlap> {
+        self.packed().evaluate(pair)
+    }
+
+    /// How many corners the overlap has.
+    pub fn corner_count(&self) -> usize {
+        self.packed().count(0)
+    }
 }
 
 thread_local! {
     static CORNERS: std::cell::RefCell<(Vec<Vec3>, Vec<Vec3>)> = std::cell::RefCell::default();
 }
 
-impl Structure {
+impl<'a> Packed<'a> {
+    /// The words of a packed structure (as [`Packed::words`] gave them).
+    pub fn new(words: &'a [u32]) -> Packed<'a> {
+        Packed { words }
+    }
+
+    /// Count `k` of the header: corners, near planes, pieces, ring entries.
+    fn count(&self, k: usize) -> usize {
+        self.words[k] as usize
+    }
+
+    /// The number at word `k` (and `k + 1`).
+    fn number(&self, k: usize) -> f64 {
+        let (lo, hi) = (u64::from(self.words[k]), u64::from(self.words[k + 1]));
+        f64::from_bits(lo | hi << 32)
+    }
+
+    fn clearance(&self) -> f64 {
+        self.number(4)
+    }
+
+    /// Where the corners start.
+    fn base(&self) -> usize {
+        HEADER
+            + if self.clearance().is_finite() {
+                FOUND_AT
+            } else {
+                0
+            }
+    }
+
+    fn found_at(&self) -> [(Vec3, UnitQuaternion<f64>, f64); 2] {
+        let body = |b: usize| {
+            let x = |k: usize| self.number(HEADER + 16 * b + 2 * k);
+            let q = nalgebra::Quaternion::new(x(6), x(3), x(4), x(5));
+            (
+                Vec3::new(x(0), x(1), x(2)),
+                UnitQuaternion::new_unchecked(q),
+                x(7),
+            )
+        };
+        [body(0), body(1)]
+    }
+
+    fn corners(&self) -> impl Iterator<Item = Corner> + 'a {
+        let (n, base) = (self.count(0), self.base());
+        self.words[base..base + 4 * n]
+            .chunks_exact(4)
+            .map(|c| match c[0] {
+                side @ 0..=1 => Corner::Vertex {
+                    side: side as u8,
+                    i: c[1],
+                },
+                tagged => Corner::Edge {
+                    side: (tagged & 1) as u8,
+                    i: c[1],
+                    j: c[2],
+                    face: c[3],
+                },
+            })
+    }
+
+    /// The side of corner `k`.
+    fn side_of(&self, k: usize) -> u8 {
+        (self.words[self.base() + 4 * k] & 1) as u8
+    }
+
+    fn near(&self) -> impl Iterator<Item = (usize, u32)> + 'a {
+        let start = self.base() + 4 * self.count(0);
+        self.words[start..start + 2 * self.count(1)]
+            .chunks_exact(2)
+            .map(|w| (w[0] as usize, w[1]))
+    }
+
+    fn pieces(&self) -> impl Iterator<Item = (u8, usize)> + 'a {
+        let start = self.base() + 4 * self.count(0) + 2 * self.count(1);
+        self.words[start..start + 3 * self.count(2)]
+            .chunks_exact(3)
+            .map(|w| (w[0] as u8, w[2] as usize))
+    }
+
+    fn rings(&self) -> &'a [u32] {
+        let start = self.base() + 4 * self.count(0) + 2 * self.count(1) + 3 * self.count(2);
+        &self.words[start..start + self.count(3)]
+    }
+
     /// The overlap of `pair` from this structure, or `None` when it is no longer the overlap's
     /// (a corner failed its check).
     pub fn evaluate(&self, pair: &Pair) -> Option<Overlap> {
         // The vertices inside a large body are still inside it by the margin while the bodies
         // have moved less than their clearance allows.
-        if self.clearance.is_finite()
-            && pair.moved_since(&self.found_at) >= self.clearance - pair.margin
-        {
+        let clearance = self.clearance();
+        if clearance.is_finite() && pair.moved_since(&self.found_at()) >= clearance - pair.margin {
             return None;
         }
         CORNERS.with_borrow_mut(|(at, ring)| {
             at.clear();
-            for &c in &self.corners {
+            for c in self.corners() {
                 at.push(pair.corner(c)?);
             }
-            for &(k, f) in &self.near {
-                let Corner::Vertex { side, .. } = self.corners[k as usize] else {
-                    return None;
-                };
-                if !pair.vertex_inside(1 - side, f, &at[k as usize]) {
+            for (k, f) in self.near() {
+                // Near planes are listed for vertex corners only.
+                if !pair.vertex_inside(1 - self.side_of(k), f, &at[k]) {
                     return None;
                 }
             }
             ring.clear();
-            ring.extend(self.rings.iter().map(|&k| at[k as usize]));
+            ring.extend(self.rings().iter().map(|&k| at[k as usize]));
             let mut acc = Acc::default();
             let mut start = 0;
-            for &(side, _, end) in &self.pieces {
-                let _ = acc.piece(&ring[start..end as usize], side == 1);
-                start = end as usize;
+            for (side, end) in self.pieces() {
+                let _ = acc.piece(&ring[start..end], side == 1);
+                start = end;
             }
             let (volume, centroid) = acc.volume_centroid()?;
             Some(Overlap {
@@ -434,9 +603,9 @@ impl Structure {
         })
     }
 
-    /// How many corners the overlap has.
-    pub fn corner_count(&self) -> usize {
-        self.corners.len()
+    /// The words, to be copied (a contact list keeps them in one buffer).
+    pub fn words(&self) -> &'a [u32] {
+        self.words
     }
 }
 
@@ -524,7 +693,7 @@ mod tests {
             );
             // The culled candidates of the engine find the same structure as all of them.
             let (kept, found) = overlap_kept(sa, a, sb, b, &axis, None, true).unwrap();
-            assert_eq!(found, Found::New(Box::new(s)), "pose {t}");
+            assert_eq!(found, Found::New(s), "pose {t}");
             assert_eq!(kept.volume, o.volume, "pose {t}");
         }
         // Random poses are not degenerate: nearly every one has a structure.
@@ -563,7 +732,7 @@ mod tests {
             let moved = sb.posed(&(b.pos + direction(&mut rng) * step), &q, 1.0);
             let axis = moved.pos - a.pos;
             let fresh = overlap_kept(sa, a, sb, &moved, &axis, None, true);
-            let kept = overlap_kept(sa, a, sb, &moved, &axis, Some(&s), true);
+            let kept = overlap_kept(sa, a, sb, &moved, &axis, Some(s.packed()), true);
             assert_eq!(
                 fresh.as_ref().map(|f| f.0),
                 kept.as_ref().map(|k| k.0),
@@ -645,7 +814,8 @@ mod tests {
                     1.0,
                 );
                 let fresh = overlap_kept(sa, &a, sb, &moved, &dir, None, true).map(|f| f.0);
-                let kept = overlap_kept(sa, &a, sb, &moved, &dir, Some(&s), true).map(|k| k.0);
+                let kept =
+                    overlap_kept(sa, &a, sb, &moved, &dir, Some(s.packed()), true).map(|k| k.0);
                 assert_eq!(fresh, kept, "trial {t}, step {step}");
                 match Pair::new(sa, &a, sb, &moved).and_then(|p| s.evaluate(&p)) {
                     Some(_) => held += 1,
@@ -688,7 +858,8 @@ mod tests {
         let deep = at(1.1 * first);
         let pair = Pair::new(&big, &block, &c, &deep).unwrap();
         assert!(s.evaluate(&pair).is_none(), "a second vertex went in");
-        let (o, again) = overlap_kept(&big, &block, &c, &deep, &Vec3::z(), Some(&s), true).unwrap();
+        let (o, again) =
+            overlap_kept(&big, &block, &c, &deep, &Vec3::z(), Some(s.packed()), true).unwrap();
         let Found::New(again) = again else {
             panic!("found again: {again:?}");
         };

@@ -196,6 +196,9 @@ pub struct World {
     /// Scratch of the broad phase, kept between steps: the posed bodies (for their buffers)
     /// and the kept list of pairs. Not part of the state (only speed depends on it).
     posed: Vec<Posed>,
+    /// The words of the structures the contacts kept a step ago, for the next step's
+    /// ([`Contacts::keep`]).
+    kept_buffer: Vec<u32>,
     broad: Broad,
     /// Whether contacts keep their overlap's structure for the next step ([`super::structure`]).
     /// Only speed depends on it; off, every contact's structure is found again each step.
@@ -346,6 +349,7 @@ impl World {
             unbalanced: f64::INFINITY,
             separations: Separations::default(),
             posed: Vec::new(),
+            kept_buffer: Vec::new(),
             broad: Broad::default(),
             keep_structures: true,
             times: StepTimes::default(),
@@ -764,20 +768,20 @@ impl World {
             self.energy.friction += t.slip_energy;
         }
         let mean_contact_force = contact_force / touches.len() as f64;
-        let mut last_kept = self.contacts.take_kept();
+        let last_kept = self.contacts.take_kept();
         self.contacts = Contacts::from_sorted(&touches, par, |t| t.key, |t| t.contact.clone());
         drop(touches);
         // The structures move on with their contacts (body pairs come first in key order).
         if self.keep_structures {
-            let kept = chunks.iter_mut().flat_map(|(t, _)| t.iter_mut()).map(|t| {
-                match std::mem::take(&mut t.kept) {
-                    Found::Kept => last_kept[t.at].take(),
-                    Found::New(s) => Some(s),
-                    Found::None => None,
-                }
+            let kept = chunks.iter().flat_map(|(t, _)| t).map(|t| match &t.kept {
+                Found::Kept => last_kept.get(t.at).map(|s| s.words()),
+                Found::New(s) => Some(s.packed().words()),
+                Found::None => None,
             });
-            self.contacts.keep(kept);
+            let buffer = std::mem::take(&mut self.kept_buffer);
+            self.contacts.keep(kept, buffer);
         }
+        self.kept_buffer = last_kept.into_buffer();
         self.energy.elastic = elastic;
         self.energy.wall_work += wall_power * dt;
         self.times.assembly += lap();
