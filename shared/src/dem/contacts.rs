@@ -96,29 +96,45 @@ impl Contacts {
         std::mem::replace(&mut self.kept, Kept::none(self.keys.len()))
     }
 
-    /// Sets the structures the first `kept.len()` contacts keep, in key order.
+    /// Sets the structures the first `kept.len()` contacts keep, in key order, copying their
+    /// words into `buffer` (in parallel when `par`: serial, the copy was a tenth of a 2-thread
+    /// step on the 5000 I_P bed).
     ///
     /// # Panics
     /// With more structures than contacts.
-    pub fn keep<'a>(
-        &mut self,
-        kept: impl IntoIterator<Item = Option<&'a [u32]>>,
-        buffer: Vec<u32>,
-    ) {
+    pub fn keep(&mut self, kept: &[Option<&[u32]>], buffer: Vec<u32>, par: bool) {
         let Kept { words, spans } = &mut self.kept;
+        assert!(kept.len() <= spans.len(), "more structures than contacts");
+        let mut end = 0u32;
+        for (slot, s) in spans.iter_mut().zip(kept) {
+            let len = s.map_or(0, |w| w.len() as u32);
+            *slot = if len > 0 { (end, len) } else { (0, 0) };
+            end += len;
+        }
         *words = buffer;
         words.clear();
-        let mut slots = spans.iter_mut();
-        for s in kept {
-            let slot = slots.next().expect("more structures than contacts");
-            *slot = match s {
-                Some(w) if !w.is_empty() => {
-                    let start = words.len() as u32;
-                    words.extend_from_slice(w);
-                    (start, w.len() as u32)
-                }
-                _ => (0, 0),
-            };
+        words.resize(end as usize, 0);
+        // The words of each run of contacts go to their own part of the buffer.
+        const RUN: usize = 512;
+        let mut parts = Vec::with_capacity(kept.len().div_ceil(RUN));
+        let mut rest = &mut words[..];
+        for run in kept.chunks(RUN) {
+            let len: usize = run.iter().map(|s| s.map_or(0, <[u32]>::len)).sum();
+            let (part, tail) = rest.split_at_mut(len);
+            parts.push((run, part));
+            rest = tail;
+        }
+        let copy = |(run, part): (&[Option<&[u32]>], &mut [u32])| {
+            let mut at = 0;
+            for w in run.iter().flatten() {
+                part[at..at + w.len()].copy_from_slice(w);
+                at += w.len();
+            }
+        };
+        if par {
+            parts.into_par_iter().for_each(copy);
+        } else {
+            parts.into_iter().for_each(copy);
         }
     }
 

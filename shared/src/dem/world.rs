@@ -773,13 +773,17 @@ impl World {
         drop(touches);
         // The structures move on with their contacts (body pairs come first in key order).
         if self.keep_structures {
-            let kept = chunks.iter().flat_map(|(t, _)| t).map(|t| match &t.kept {
-                Found::Kept => last_kept.get(t.at).map(|s| s.words()),
-                Found::New(s) => Some(s.packed().words()),
-                Found::None => None,
-            });
+            let kept: Vec<Option<&[u32]>> = chunks
+                .iter()
+                .flat_map(|(t, _)| t)
+                .map(|t| match &t.kept {
+                    Found::Kept => last_kept.get(t.at).map(|s| s.words()),
+                    Found::New(s) => Some(s.packed().words()),
+                    Found::None => None,
+                })
+                .collect();
             let buffer = std::mem::take(&mut self.kept_buffer);
-            self.contacts.keep(kept, buffer);
+            self.contacts.keep(&kept, buffer, par);
         }
         self.kept_buffer = last_kept.into_buffer();
         self.energy.elastic = elastic;
