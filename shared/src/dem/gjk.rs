@@ -9,7 +9,7 @@
 //! only means "not shown separated" (overlapping, touching within the margin, or the iteration
 //! gave up), and the caller then does the exact overlap.
 
-use super::shape::Climb;
+use super::shape::{Climb, Posed, Shape};
 use crate::math::Vec3;
 use nalgebra::Rotation3;
 
@@ -20,9 +20,37 @@ pub struct Points<'a> {
     pub points: &'a [Vec3],
     /// The hull's vertex graph and the body's rotation (to start a climb from [`Climb::start`]).
     pub climb: Option<(&'a Climb, &'a Rotation3<f64>)>,
+    /// A posed body whose vertices were left out ([`Posed::vertex`]): its points, computed
+    /// when asked for (`points` is then empty).
+    pub posed: Option<(&'a Shape, &'a Posed)>,
 }
 
-impl Points<'_> {
+impl<'a> Points<'a> {
+    /// The vertices of `p`, a posed `s`.
+    pub fn posed(s: &'a Shape, p: &'a Posed) -> Points<'a> {
+        Points {
+            points: &p.vertices,
+            climb: s.climb.as_ref().map(|c| (c, &p.rot)),
+            posed: p.vertices.is_empty().then_some((s, p)),
+        }
+    }
+
+    /// Point `i`.
+    fn point(&self, i: usize) -> Vec3 {
+        match self.posed {
+            Some((s, p)) => p.vertex(s, i),
+            None => self.points[i],
+        }
+    }
+
+    /// How many points there are.
+    fn len(&self) -> usize {
+        match self.posed {
+            Some((s, p)) => p.vertex_count(s),
+            None => self.points.len(),
+        }
+    }
+
     /// The index of a point farthest along `d`; `hint` is where a climb starts (the last
     /// support: GJK's directions turn little) and is moved to the answer. On a convex hull a
     /// vertex no neighbour of which is higher is the highest, up to round-off: a climb can
@@ -42,7 +70,7 @@ impl Points<'_> {
             return best;
         };
         let from = hint.unwrap_or_else(|| climb.start(rot, d));
-        let (at, _) = climb.ascend(from, |i| d.dot(&points[i]));
+        let (at, _) = climb.ascend(from, |i| d.dot(&self.point(i)));
         *hint = Some(at);
         at
     }
@@ -83,10 +111,12 @@ pub fn separated(a: &[Vec3], b: &[Vec3], start: &Vec3, margin: f64) -> bool {
         Points {
             points: a,
             climb: None,
+            posed: None,
         },
         Points {
             points: b,
             climb: None,
+            posed: None,
         },
     );
     let mut hints = Hints::default();
@@ -109,12 +139,12 @@ pub fn separating_gap(
     margin: f64,
     hints: &mut Hints,
 ) -> Option<(Vec3, f64)> {
-    if a.points.is_empty() || b.points.is_empty() {
+    if a.len() == 0 || b.len() == 0 {
         return None;
     }
     // The farthest point of A - B along d: max_A d.x - min_B d.x at once.
     let [hint_a, hint_b] = hints;
-    let mut diff = |d: &Vec3| a.points[a.support(d, hint_a)] - b.points[b.support(&-d, hint_b)];
+    let mut diff = |d: &Vec3| a.point(a.support(d, hint_a)) - b.point(b.support(&-d, hint_b));
     let mut d = if start.norm() > 0.0 && start.norm().is_finite() {
         *start
     } else {

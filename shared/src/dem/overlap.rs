@@ -156,10 +156,10 @@ struct Side {
 impl Side {
     /// The greatest height of a vertex of `p` (a posed `s`) along `sign n`.
     fn climb_to_top(&mut self, s: &Shape, p: &Posed, n: &Vec3, sign: f64) -> f64 {
-        let vs = &p.vertices;
         let Some(c) = &s.climb else {
             self.heights.clear();
-            self.heights.extend(vs.iter().map(|v| sign * n.dot(v)));
+            self.heights
+                .extend(p.vertices.iter().map(|v| sign * n.dot(v)));
             let (mut best, mut at) = (f64::NEG_INFINITY, 0);
             for (i, &h) in self.heights.iter().enumerate() {
                 if h > best {
@@ -175,15 +175,16 @@ impl Side {
             self.stamp = 0;
         }
         self.stamp += 1;
-        if self.height_stamps.len() < vs.len() {
-            self.height_stamps.resize(vs.len(), 0);
-            self.seen_stamps.resize(vs.len(), 0);
+        let count = s.vertices.len();
+        if self.height_stamps.len() < count {
+            self.height_stamps.resize(count, 0);
+            self.seen_stamps.resize(count, 0);
         }
-        if self.heights.len() < vs.len() {
-            self.heights.resize(vs.len(), 0.0);
+        if self.heights.len() < count {
+            self.heights.resize(count, 0.0);
         }
         let (heights, stamps, stamp) = (&mut self.heights, &mut self.height_stamps, self.stamp);
-        let height = |i: usize| lazy_height(heights, stamps, stamp, vs, n, sign, i);
+        let height = |i: usize| lazy_height(heights, stamps, stamp, (s, p), n, sign, i);
         // Steepest ascent: on a convex polytope a vertex with no higher neighbour is a top.
         let (at, best) = c.ascend(c.start(&p.rot, &(n * sign)), height);
         self.top = at;
@@ -201,7 +202,6 @@ impl Side {
             );
             return;
         };
-        let vs = &p.vertices;
         let (heights, stamps, seen, stamp) = (
             &mut self.heights,
             &mut self.height_stamps,
@@ -218,7 +218,7 @@ impl Side {
                 if seen[wi] == stamp {
                     continue;
                 }
-                if lazy_height(heights, stamps, stamp, vs, n, sign, wi) >= floor {
+                if lazy_height(heights, stamps, stamp, (s, p), n, sign, wi) >= floor {
                     seen[wi] = stamp;
                     self.reach.push(w);
                     self.stack.push(w);
@@ -234,13 +234,13 @@ fn lazy_height(
     heights: &mut [f64],
     stamps: &mut [u32],
     stamp: u32,
-    vs: &[Vec3],
+    (s, p): (&Shape, &Posed),
     n: &Vec3,
     sign: f64,
     i: usize,
 ) -> f64 {
     if stamps[i] != stamp {
-        heights[i] = sign * n.dot(&vs[i]);
+        heights[i] = sign * n.dot(&p.vertex(s, i));
         stamps[i] = stamp;
     }
     heights[i]
@@ -342,9 +342,10 @@ fn clip_faces(
         buffers.stamp = 0;
     }
     buffers.stamp += 1;
-    if buffers.codes.len() < x.vertices.len() {
-        buffers.codes.resize(x.vertices.len(), 0);
-        buffers.code_stamps.resize(x.vertices.len(), 0);
+    let count = x.vertex_count(sx);
+    if buffers.codes.len() < count {
+        buffers.codes.resize(count, 0);
+        buffers.code_stamps.resize(count, 0);
     }
     let Clip {
         poly,
@@ -375,7 +376,7 @@ fn clip_faces(
             let c = &mut codes[i as usize];
             if code_stamps[i as usize] != *stamp {
                 code_stamps[i as usize] = *stamp;
-                let v = &x.vertices[i as usize];
+                let v = &x.vertex(sx, i as usize);
                 let out = |(k, (m, d)): (usize, (&Vec3, f64))| u64::from(m.dot(v) > d) << k;
                 *c = bounds
                     .iter()
@@ -406,7 +407,7 @@ fn clip_faces(
             continue 'faces; // wholly outside one plane
         }
         poly.clear();
-        poly.extend(idx.iter().map(|&i| x.vertices[i as usize]));
+        poly.extend(idx.iter().map(|&i| x.vertex(sx, i as usize)));
         for (k, (bn, bd)) in bounds.iter().enumerate() {
             if any & (1 << k) != 0 && !clip(poly, tmp, dist, bn, *bd) {
                 continue 'faces;
@@ -498,14 +499,8 @@ pub fn gap_proof(
     hints: &mut Hints,
 ) -> Option<GapProof> {
     let size = (a.hi - a.lo).norm().max((b.hi - b.lo).norm());
-    let pa = Points {
-        points: &a.vertices,
-        climb: sa.climb.as_ref().map(|c| (c, &a.rot)),
-    };
-    let pb = Points {
-        points: &b.vertices,
-        climb: sb.climb.as_ref().map(|c| (c, &b.rot)),
-    };
+    let pa = Points::posed(sa, a);
+    let pb = Points::posed(sb, b);
     let margin = APART_REL * size;
     separating_gap(pa, pb, start, margin, hints).map(|(axis, gap)| GapProof {
         axis,
@@ -564,7 +559,7 @@ pub fn overlap_kept(
     if a2 * a2.sqrt() <= SWALLOWED_REL.powi(3) * o.volume * o.volume {
         // One body (nearly) inside the other: S_B vanishes and gives no direction. Push apart
         // along the line of centroids, by the penetration along it (separating-axis overlap).
-        o.area_b = swallowed(a, b, o.volume);
+        o.area_b = swallowed(sa, a, sb, b, o.volume);
     }
     Some((o, structure))
 }
@@ -693,14 +688,15 @@ fn overlap_parts_with(
 }
 
 /// How far A reaches along `n` and where B starts: they overlap along `n` when B starts first.
-fn reach(a: &Posed, b: &Posed, n: &Vec3) -> (f64, f64) {
-    let along = |v: &Vec3| n.dot(v);
+fn reach(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, n: &Vec3) -> (f64, f64) {
+    let along = |s: &Shape, p: &Posed, i: usize| n.dot(&p.vertex(s, i));
     (
-        a.vertices
-            .iter()
-            .map(along)
+        (0..a.vertex_count(sa))
+            .map(|i| along(sa, a, i))
             .fold(f64::NEG_INFINITY, f64::max),
-        b.vertices.iter().map(along).fold(f64::INFINITY, f64::min),
+        (0..b.vertex_count(sb))
+            .map(|i| along(sb, b, i))
+            .fold(f64::INFINITY, f64::min),
     )
 }
 
@@ -709,15 +705,18 @@ const SWALLOWED_REL: f64 = 1e-9;
 
 /// The `S_B` that makes `normal()` the centroid-to-centroid direction and `depth()` the
 /// penetration along it, for an overlap of `volume` with one body inside the other.
-fn swallowed(a: &Posed, b: &Posed, volume: f64) -> Vec3 {
-    let mean = |p: &Posed| p.vertices.iter().sum::<Vec3>() / p.vertices.len() as f64;
-    let d = mean(b) - mean(a);
+fn swallowed(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, volume: f64) -> Vec3 {
+    let mean = |s: &Shape, p: &Posed| {
+        let count = p.vertex_count(s);
+        (0..count).map(|i| p.vertex(s, i)).sum::<Vec3>() / count as f64
+    };
+    let d = mean(sb, b) - mean(sa, a);
     let n = if d.norm() > 0.0 {
         d.normalize()
     } else {
         Vec3::z()
     };
-    let (reach_a, start_b) = reach(a, b, &n);
+    let (reach_a, start_b) = reach(sa, a, sb, b, &n);
     let depth = (reach_a - start_b).max(f64::MIN_POSITIVE);
     -n * (volume / depth)
 }
@@ -753,7 +752,11 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
         faces_around(sb, &side_b.reach, faces_b);
         for &f in faces_b.iter() {
             poly.clear();
-            poly.extend(sb.face(f as usize).iter().map(|&i| b.vertices[i as usize]));
+            poly.extend(
+                sb.face(f as usize)
+                    .iter()
+                    .map(|&i| b.vertex(sb, i as usize)),
+            );
             if clip(poly, tmp, dist, n, d) {
                 let _ = acc.piece(poly, true);
             }

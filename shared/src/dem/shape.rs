@@ -292,7 +292,7 @@ impl Shape {
 
     /// [`Shape::posed`] into `out`, reusing its buffers (same values).
     pub fn pose_into(&self, pos: &Vec3, rot: &UnitQuaternion<f64>, scale: f64, out: &mut Posed) {
-        self.pose_with(pos, rot, scale, out, true);
+        self.pose_with(pos, rot, scale, out, true, true);
     }
 
     /// [`Shape::pose_into`] for the contact search: a large shape ([`Shape::climb`]) leaves its
@@ -305,7 +305,8 @@ impl Shape {
         scale: f64,
         out: &mut Posed,
     ) {
-        self.pose_with(pos, rot, scale, out, self.climb.is_none());
+        let small = self.climb.is_none();
+        self.pose_with(pos, rot, scale, out, small, small);
     }
 
     fn pose_with(
@@ -314,6 +315,7 @@ impl Shape {
         rot: &UnitQuaternion<f64>,
         scale: f64,
         out: &mut Posed,
+        vertices: bool,
         planes: bool,
     ) {
         let r = rot.to_rotation_matrix();
@@ -322,8 +324,14 @@ impl Shape {
         out.pos = *pos;
         out.scale = scale;
         out.vertices.clear();
-        out.vertices
-            .extend(self.vertices.iter().map(|v| pos + r * (v * scale)));
+        if !vertices {
+            let mut all = self.vertices.iter().map(|v| pos + r * (v * scale));
+            let first = all.next().expect("a shape has vertices");
+            (out.lo, out.hi) = all.fold((first, first), |(lo, hi), v| (lo.inf(&v), hi.sup(&v)));
+        } else {
+            out.vertices
+                .extend(self.vertices.iter().map(|v| pos + r * (v * scale)));
+        }
         out.normals.clear();
         out.offsets.clear();
         if planes {
@@ -335,9 +343,11 @@ impl Shape {
                     .map(|(d, n)| plane_offset(*d, n, pos, scale)),
             );
         }
-        let (lo, hi) = crate::math::bounding_box(&out.vertices).expect("a shape has vertices");
-        out.lo = lo;
-        out.hi = hi;
+        if vertices {
+            let (lo, hi) = crate::math::bounding_box(&out.vertices).expect("a shape has vertices");
+            out.lo = lo;
+            out.hi = hi;
+        }
     }
 }
 
@@ -412,6 +422,28 @@ pub struct Posed {
 }
 
 impl Posed {
+    /// World position of vertex `i` of `s` (the shape this is a pose of): the posed one, or the
+    /// same numbers computed now when the vertices were left out (a large shape posed for
+    /// contacts: a contact reads a few dozen of its 758 vertices, and posing them all wrote
+    /// 18 KiB per body and step).
+    /// How many vertices this pose of `s` has ([`Posed::vertex`]).
+    pub fn vertex_count(&self, s: &Shape) -> usize {
+        if self.vertices.is_empty() {
+            s.vertices.len()
+        } else {
+            self.vertices.len()
+        }
+    }
+
+    #[inline]
+    pub fn vertex(&self, s: &Shape, i: usize) -> Vec3 {
+        if self.vertices.is_empty() {
+            self.pos + self.rot * (s.vertices[i] * self.scale)
+        } else {
+            self.vertices[i]
+        }
+    }
+
     /// World normal and offset of face `f` of `s` (the shape this is a pose of): the posed
     /// plane, or the same numbers computed now when the planes were left out.
     pub fn plane(&self, s: &Shape, f: usize) -> (Vec3, f64) {
@@ -450,6 +482,35 @@ mod tests {
     use super::*;
     use crate::mesh::cube;
     use approx::assert_relative_eq;
+
+    /// A large hull posed for contacts leaves its vertices out: each one computed when asked
+    /// for, and the box, must be the full pose's to the bit.
+    #[test]
+    fn a_large_hull_posed_for_contacts_gives_the_full_poses_numbers() {
+        use crate::polygen::{generate, Params};
+        let mesh = generate(&Params::default(), 3, 0).unwrap().mesh;
+        let topo = mesh.topology(None).unwrap();
+        let s = Shape::from_mesh(&crate::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
+        assert!(
+            s.climb.is_some(),
+            "not a large hull: {} vertices",
+            s.vertices.len()
+        );
+        let pos = Vec3::new(0.3, -0.1, 0.25);
+        let rot = UnitQuaternion::from_euler_angles(0.3, -1.1, 2.0);
+        let full = s.posed(&pos, &rot, 0.013);
+        let mut lazy = Posed::default();
+        s.pose_for_contacts(&pos, &rot, 0.013, &mut lazy);
+        assert!(lazy.vertices.is_empty() && lazy.normals.is_empty());
+        assert_eq!(lazy.vertex_count(&s), full.vertices.len());
+        for (i, v) in full.vertices.iter().enumerate() {
+            assert_eq!(lazy.vertex(&s, i), *v, "vertex {i}");
+        }
+        assert_eq!((lazy.lo, lazy.hi), (full.lo, full.hi));
+        for f in 0..s.face_count() {
+            assert_eq!(lazy.plane(&s, f), full.plane(&s, f), "plane {f}");
+        }
+    }
 
     #[test]
     fn cube_shape_in_principal_frame() {

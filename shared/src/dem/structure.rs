@@ -133,6 +133,11 @@ impl<'a> Pair<'a> {
         })
     }
 
+    /// World position of vertex `i` of body `side`.
+    fn vertex(&self, side: u8, i: u32) -> Vec3 {
+        self.posed[side as usize].vertex(self.shapes[side as usize], i as usize)
+    }
+
     /// World plane of face `f` of body `side`.
     fn plane(&self, side: u8, f: u32) -> (Vec3, f64) {
         self.posed[side as usize].plane(self.shapes[side as usize], f as usize)
@@ -172,11 +177,12 @@ impl<'a> Pair<'a> {
     /// True when `p`, on the plane (normal `n`) of face `f` of body `side`, lies inside the face's
     /// polygon by the margin.
     fn in_face(&self, side: u8, f: u32, n: &Vec3, p: &Vec3) -> bool {
-        let vs = &self.posed[side as usize].vertices;
-        let face = self.shapes[side as usize].face(f as usize);
+        let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
+        let vertex = |u: u32| posed.vertex(s, u as usize);
+        let face = s.face(f as usize);
         let m2 = self.margin * self.margin;
         face.iter().enumerate().all(|(k, &u)| {
-            let (u, w) = (vs[u as usize], vs[face[(k + 1) % face.len()] as usize]);
+            let (u, w) = (vertex(u), vertex(face[(k + 1) % face.len()]));
             // Inward in the plane for a face counter-clockwise about its outward normal.
             let inward = n.cross(&(w - u));
             let t = inward.dot(&(p - u));
@@ -188,14 +194,13 @@ impl<'a> Pair<'a> {
     fn corner(&self, c: Corner) -> Option<Vec3> {
         match c {
             Corner::Vertex { side, i } => {
-                let v = self.posed[side as usize].vertices[i as usize];
+                let v = self.vertex(side, i);
                 // Inside a large body: see `Structure::near`.
                 (self.large[1 - side as usize] || self.inside(1 - side, &v, u32::MAX)).then_some(v)
             }
             Corner::Edge { side, i, j, face } => {
-                let own = self.posed[side as usize];
                 let (n, d) = self.plane(1 - side, face);
-                let (vi, vj) = (own.vertices[i as usize], own.vertices[j as usize]);
+                let (vi, vj) = (self.vertex(side, i), self.vertex(side, j));
                 let (si, sj) = (n.dot(&vi) - d, n.dot(&vj) - d);
                 let m = self.margin;
                 if !((si < -m && sj > m) || (si > m && sj < -m)) {
@@ -318,10 +323,9 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
         ends.extend(edges.iter().flat_map(|&(i, j)| [i, j]));
         ends.sort_unstable();
         ends.dedup();
-        let own = &pair.posed[side as usize].vertices;
         dist.clear();
         for &v in &ends {
-            let v = own[v as usize];
+            let v = pair.vertex(side, v);
             dist.extend(planes.iter().map(|(n, d)| n.dot(&v) - d));
         }
         let row = |v: u32| {
