@@ -174,18 +174,22 @@ impl<'a> Pair<'a> {
             .sum()
     }
 
-    /// True when `p`, on the plane (normal `n`) of face `f` of body `side`, lies inside the face's
-    /// polygon by the margin.
-    fn in_face(&self, side: u8, f: u32, n: &Vec3, p: &Vec3) -> bool {
+    /// True when `p`, on the plane of face `f` of body `side`, lies inside the face's polygon by
+    /// the margin. Tested in the body's own frame, on its shape's vertices: posing the face's
+    /// vertices for it (a large hull's are posed when read, see `Posed::vertex`) was most of
+    /// the cost of a kept Ab_3 contact.
+    fn in_face(&self, side: u8, f: u32, p: &Vec3) -> bool {
         let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
-        let vertex = |u: u32| posed.vertex(s, u as usize);
-        let face = s.face(f as usize);
-        let m2 = self.margin * self.margin;
+        let at = posed.rot.inverse_transform_vector(&(p - posed.pos)) / posed.scale;
+        let (n, face) = (s.normals[f as usize], s.face(f as usize));
+        let m = self.margin / posed.scale;
+        let m2 = m * m;
         face.iter().enumerate().all(|(k, &u)| {
-            let (u, w) = (vertex(u), vertex(face[(k + 1) % face.len()]));
+            let w = s.vertices[face[(k + 1) % face.len()] as usize];
+            let u = s.vertices[u as usize];
             // Inward in the plane for a face counter-clockwise about its outward normal.
             let inward = n.cross(&(w - u));
-            let t = inward.dot(&(p - u));
+            let t = inward.dot(&(at - u));
             t > 0.0 && t * t > m2 * inward.norm_squared()
         })
     }
@@ -208,7 +212,7 @@ impl<'a> Pair<'a> {
                 }
                 let p = vi + (vj - vi) * (si / (si - sj));
                 let inside = if self.large[1 - side as usize] {
-                    self.in_face(1 - side, face, &n, &p)
+                    self.in_face(1 - side, face, &p)
                 } else {
                     self.inside(1 - side, &p, face)
                 };
