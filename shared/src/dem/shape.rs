@@ -295,18 +295,36 @@ impl Shape {
         self.pose_with(pos, rot, scale, out, true, true);
     }
 
-    /// [`Shape::pose_into`] for the contact search: a large shape ([`Shape::climb`]) leaves its
-    /// face planes to [`Posed::plane`], since a contact needs only the few near it (an Ab_3
-    /// hull has about 1500; posing them all was a fifth of a step).
+    /// [`Shape::pose_into`] for the contact search. A large shape ([`Shape::climb`]) leaves its
+    /// face planes to [`Posed::plane`], since a contact needs only the few near it (an Ab_3 hull
+    /// has about 1500; posing them all was a fifth of a step). With `lazy` it also leaves its
+    /// vertices to [`Posed::vertex`] (a contact reads a few dozen of 758), and its box comes
+    /// from climbing to its six extreme vertices, padded for a climb that stops short by
+    /// round-off (the box only culls: a larger one changes no contact, though the pairs'
+    /// margins follow its size). That pays while the shapes' own vertices stay in cache: see
+    /// the world's `LAZY_HULLS_MAX_BYTES`.
     pub fn pose_for_contacts(
         &self,
         pos: &Vec3,
         rot: &UnitQuaternion<f64>,
         scale: f64,
         out: &mut Posed,
+        lazy: bool,
     ) {
         let small = self.climb.is_none();
-        self.pose_with(pos, rot, scale, out, small, small);
+        let Some(c) = self.climb.as_ref().filter(|_| lazy) else {
+            return self.pose_with(pos, rot, scale, out, true, small);
+        };
+        self.pose_with(pos, rot, scale, out, false, false);
+        let pad = BOX_PAD_REL * self.radius * scale;
+        let world = |i: usize| out.vertex(self, i);
+        let (mut lo, mut hi) = (Vec3::zeros(), Vec3::zeros());
+        for k in 0..3 {
+            let d = Vec3::ith(k, 1.0);
+            hi[k] = c.ascend(c.start(&out.rot, &d), |i| world(i)[k]).1 + pad;
+            lo[k] = -c.ascend(c.start(&out.rot, &-d), |i| -world(i)[k]).1 - pad;
+        }
+        (out.lo, out.hi) = (lo, hi);
     }
 
     fn pose_with(
@@ -324,21 +342,7 @@ impl Shape {
         out.pos = *pos;
         out.scale = scale;
         out.vertices.clear();
-        if !vertices {
-            let c = self
-                .climb
-                .as_ref()
-                .expect("only a large shape leaves its vertices out");
-            // The box's six sides by climbing to the extreme vertices, padded for a climb that
-            // stops short by round-off (the box only culls: a larger one changes no contact).
-            let world = |i: usize| pos + r * (self.vertices[i] * scale);
-            let pad = BOX_PAD_REL * self.radius * scale;
-            for k in 0..3 {
-                let d = Vec3::ith(k, 1.0);
-                out.hi[k] = c.ascend(c.start(&r, &d), |i| world(i)[k]).1 + pad;
-                out.lo[k] = -c.ascend(c.start(&r, &-d), |i| -world(i)[k]).1 - pad;
-            }
-        } else {
+        if vertices {
             out.vertices
                 .extend(self.vertices.iter().map(|v| pos + r * (v * scale)));
         }
@@ -514,8 +518,15 @@ mod tests {
         let pos = Vec3::new(0.3, -0.1, 0.25);
         let rot = UnitQuaternion::from_euler_angles(0.3, -1.1, 2.0);
         let full = s.posed(&pos, &rot, 0.013);
-        let mut lazy = Posed::default();
-        s.pose_for_contacts(&pos, &rot, 0.013, &mut lazy);
+        let (mut lazy, mut eager) = (Posed::default(), Posed::default());
+        s.pose_for_contacts(&pos, &rot, 0.013, &mut lazy, true);
+        s.pose_for_contacts(&pos, &rot, 0.013, &mut eager, false);
+        assert_eq!(eager.vertices, full.vertices);
+        assert_eq!((eager.lo, eager.hi), (full.lo, full.hi));
+        assert!(
+            eager.normals.is_empty(),
+            "a large hull's planes are left out either way"
+        );
         assert!(lazy.vertices.is_empty() && lazy.normals.is_empty());
         assert_eq!(lazy.vertex_count(&s), full.vertices.len());
         for (i, v) in full.vertices.iter().enumerate() {

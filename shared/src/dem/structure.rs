@@ -174,24 +174,32 @@ impl<'a> Pair<'a> {
             .sum()
     }
 
-    /// True when `p`, on the plane of face `f` of body `side`, lies inside the face's polygon by
-    /// the margin. Tested in the body's own frame, on its shape's vertices: posing the face's
-    /// vertices for it (a large hull's are posed when read, see `Posed::vertex`) was most of
-    /// the cost of a kept Ab_3 contact.
-    fn in_face(&self, side: u8, f: u32, p: &Vec3) -> bool {
+    /// True when `p`, on the plane (normal `n`) of face `f` of body `side`, lies inside the
+    /// face's polygon by the margin. On the posed vertices when the body has them; else in the
+    /// body's own frame, on its shape's vertices (posing them for it, when a large hull's are
+    /// posed as read, was most of the cost of a kept Ab_3 contact).
+    fn in_face(&self, side: u8, f: u32, n: &Vec3, p: &Vec3) -> bool {
         let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
+        let face = s.face(f as usize);
+        let inside = |vs: &[Vec3], n: &Vec3, p: &Vec3, m: f64| {
+            face.iter().enumerate().all(|(k, &u)| {
+                let (u, w) = (vs[u as usize], vs[face[(k + 1) % face.len()] as usize]);
+                // Inward in the plane for a face counter-clockwise about its outward normal.
+                let inward = n.cross(&(w - u));
+                let t = inward.dot(&(p - u));
+                t > 0.0 && t * t > m * m * inward.norm_squared()
+            })
+        };
+        if !posed.vertices.is_empty() {
+            return inside(&posed.vertices, n, p, self.margin);
+        }
         let at = posed.rot.inverse_transform_vector(&(p - posed.pos)) / posed.scale;
-        let (n, face) = (s.normals[f as usize], s.face(f as usize));
-        let m = self.margin / posed.scale;
-        let m2 = m * m;
-        face.iter().enumerate().all(|(k, &u)| {
-            let w = s.vertices[face[(k + 1) % face.len()] as usize];
-            let u = s.vertices[u as usize];
-            // Inward in the plane for a face counter-clockwise about its outward normal.
-            let inward = n.cross(&(w - u));
-            let t = inward.dot(&(at - u));
-            t > 0.0 && t * t > m2 * inward.norm_squared()
-        })
+        inside(
+            &s.vertices,
+            &s.normals[f as usize],
+            &at,
+            self.margin / posed.scale,
+        )
     }
 
     /// Where corner `c` is, or `None` when it is not robustly a corner of the overlap.
@@ -212,7 +220,7 @@ impl<'a> Pair<'a> {
                 }
                 let p = vi + (vj - vi) * (si / (si - sj));
                 let inside = if self.large[1 - side as usize] {
-                    self.in_face(1 - side, face, &p)
+                    self.in_face(1 - side, face, &n, &p)
                 } else {
                     self.inside(1 - side, &p, face)
                 };
