@@ -97,8 +97,8 @@ impl Contacts {
     }
 
     /// Sets the structures the first `kept.len()` contacts keep, in key order, copying their
-    /// words into `buffer` (in parallel when `par`: serial, the copy was a tenth of a 2-thread
-    /// step on the 5000 I_P bed).
+    /// words into `buffer` (in parallel runs when `par`: serial, the copy sat in a force
+    /// assembly that had grown to 13-14 % of a 2-thread step on the 2000 and 5000 I_P beds).
     ///
     /// # Panics
     /// With more structures than contacts.
@@ -281,6 +281,42 @@ mod tests {
             a.get(&(Partner::Wall(2), 250)).map(|v| v.depth),
             Some(-250.0)
         );
+    }
+
+    /// Words of a made-up structure `k` words long, starting from `k`.
+    fn words(k: u32) -> Vec<u32> {
+        (k..2 * k).collect()
+    }
+
+    #[test]
+    fn kept_structures_come_back_in_contact_order_serial_or_parallel() {
+        let items: Vec<ContactKey> = (0..1500u32).map(|i| (Partner::Body(i / 5), i)).collect();
+        // Every third contact keeps nothing; the rest 1 to 40 words.
+        let kept: Vec<Option<Vec<u32>>> = (0..1400u32)
+            .map(|i| (i % 3 != 0).then(|| words(1 + i % 40)))
+            .collect();
+        let refs: Vec<Option<&[u32]>> = kept.iter().map(|k| k.as_deref()).collect();
+        let mut lists = [true, false].map(|par| {
+            let mut c = Contacts::from_sorted(&items, par, |k| *k, |_| contact(0.0));
+            c.keep(&refs, vec![7; 3], par);
+            c
+        });
+        for c in &lists {
+            for (k, want) in kept.iter().enumerate() {
+                let got = c.kept.get(k).map(|p| p.words().to_vec());
+                assert_eq!(got.as_ref(), want.as_ref(), "contact {k}");
+            }
+            // Past the structures handed over: none.
+            assert!((1400..1500).all(|k| c.kept.get(k).is_none()));
+        }
+        // Taken out, a list keeps none; replacing a contact drops its structure.
+        let [a, b] = &mut lists;
+        let old = a.take_kept();
+        assert!(a.kept.get(1).is_none() && old.get(1).is_some());
+        assert!(b.kept.get(1).is_some());
+        b.insert((Partner::Body(0), 1), contact(1.0));
+        assert!(b.kept.get(1).is_none());
+        assert!(b.kept.get(2).is_some());
     }
 
     #[test]
