@@ -436,10 +436,6 @@ pub struct Posed {
 }
 
 impl Posed {
-    /// World position of vertex `i` of `s` (the shape this is a pose of): the posed one, or the
-    /// same numbers computed now when the vertices were left out (a large shape posed for
-    /// contacts: a contact reads a few dozen of its 758 vertices, and posing them all wrote
-    /// 18 KiB per body and step).
     /// How many vertices this pose of `s` has ([`Posed::vertex`]).
     pub fn vertex_count(&self, s: &Shape) -> usize {
         if self.vertices.is_empty() {
@@ -449,6 +445,10 @@ impl Posed {
         }
     }
 
+    /// World position of vertex `i` of `s` (the shape this is a pose of): the posed one, or the
+    /// same numbers computed now when the vertices were left out (a large shape posed for
+    /// contacts: a contact reads a few dozen of its 758 vertices, and posing them all wrote
+    /// 18 KiB per body and step).
     #[inline]
     pub fn vertex(&self, s: &Shape, i: usize) -> Vec3 {
         if self.vertices.is_empty() {

@@ -488,12 +488,43 @@ impl Structure {
 
     /// How many corners the overlap has.
     pub fn corner_count(&self) -> usize {
-        self.packed().count(0)
+        self.words[0] as usize
     }
 }
 
 thread_local! {
     static CORNERS: std::cell::RefCell<(Vec<Vec3>, Vec<Vec3>)> = std::cell::RefCell::default();
+}
+
+/// The number that [`split`] gave the words `w[0]`, `w[1]` of.
+fn join(w: &[u32]) -> f64 {
+    f64::from_bits(u64::from(w[0]) | u64::from(w[1]) << 32)
+}
+
+/// A corner from its 4 words.
+fn corner_of(c: &[u32]) -> Corner {
+    match c[0] {
+        side @ 0..=1 => Corner::Vertex {
+            side: side as u8,
+            i: c[1],
+        },
+        tagged => Corner::Edge {
+            side: (tagged & 1) as u8,
+            i: c[1],
+            j: c[2],
+            face: c[3],
+        },
+    }
+}
+
+/// A packed structure's sections, split once (see [`Packed`] for the layout).
+struct Sections<'a> {
+    clearance: f64,
+    found_at: &'a [u32],
+    corners: &'a [u32],
+    near: &'a [u32],
+    pieces: &'a [u32],
+    rings: &'a [u32],
 }
 
 impl<'a> Packed<'a> {
@@ -502,112 +533,64 @@ impl<'a> Packed<'a> {
         Packed { words }
     }
 
-    /// Count `k` of the header: corners, near planes, pieces, ring entries.
-    fn count(&self, k: usize) -> usize {
-        self.words[k] as usize
-    }
-
-    /// The number at word `k` (and `k + 1`).
-    fn number(&self, k: usize) -> f64 {
-        let (lo, hi) = (u64::from(self.words[k]), u64::from(self.words[k + 1]));
-        f64::from_bits(lo | hi << 32)
-    }
-
-    fn clearance(&self) -> f64 {
-        self.number(4)
-    }
-
-    /// Where the corners start.
-    fn base(&self) -> usize {
-        HEADER
-            + if self.clearance().is_finite() {
-                FOUND_AT
-            } else {
-                0
-            }
-    }
-
-    fn found_at(&self) -> [(Vec3, UnitQuaternion<f64>, f64); 2] {
-        let body = |b: usize| {
-            let x = |k: usize| self.number(HEADER + 16 * b + 2 * k);
-            let q = nalgebra::Quaternion::new(x(6), x(3), x(4), x(5));
-            (
-                Vec3::new(x(0), x(1), x(2)),
-                UnitQuaternion::new_unchecked(q),
-                x(7),
-            )
-        };
-        [body(0), body(1)]
-    }
-
-    fn corners(&self) -> impl Iterator<Item = Corner> + 'a {
-        let (n, base) = (self.count(0), self.base());
-        self.words[base..base + 4 * n]
-            .chunks_exact(4)
-            .map(|c| match c[0] {
-                side @ 0..=1 => Corner::Vertex {
-                    side: side as u8,
-                    i: c[1],
-                },
-                tagged => Corner::Edge {
-                    side: (tagged & 1) as u8,
-                    i: c[1],
-                    j: c[2],
-                    face: c[3],
-                },
-            })
-    }
-
-    /// The side of corner `k`.
-    fn side_of(&self, k: usize) -> u8 {
-        (self.words[self.base() + 4 * k] & 1) as u8
-    }
-
-    fn near(&self) -> impl Iterator<Item = (usize, u32)> + 'a {
-        let start = self.base() + 4 * self.count(0);
-        self.words[start..start + 2 * self.count(1)]
-            .chunks_exact(2)
-            .map(|w| (w[0] as usize, w[1]))
-    }
-
-    fn pieces(&self) -> impl Iterator<Item = (u8, usize)> + 'a {
-        let start = self.base() + 4 * self.count(0) + 2 * self.count(1);
-        self.words[start..start + 3 * self.count(2)]
-            .chunks_exact(3)
-            .map(|w| (w[0] as u8, w[2] as usize))
-    }
-
-    fn rings(&self) -> &'a [u32] {
-        let start = self.base() + 4 * self.count(0) + 2 * self.count(1) + 3 * self.count(2);
-        &self.words[start..start + self.count(3)]
+    fn sections(&self) -> Sections<'a> {
+        let w = self.words;
+        let count = |k: usize| w[k] as usize;
+        let clearance = join(&w[4..6]);
+        let found_at = if clearance.is_finite() { FOUND_AT } else { 0 };
+        let (found_at, rest) = w[HEADER..].split_at(found_at);
+        let (corners, rest) = rest.split_at(4 * count(0));
+        let (near, rest) = rest.split_at(2 * count(1));
+        let (pieces, rings) = rest.split_at(3 * count(2));
+        debug_assert_eq!(rings.len(), count(3));
+        Sections {
+            clearance,
+            found_at,
+            corners,
+            near,
+            pieces,
+            rings,
+        }
     }
 
     /// The overlap of `pair` from this structure, or `None` when it is no longer the overlap's
     /// (a corner failed its check).
     pub fn evaluate(&self, pair: &Pair) -> Option<Overlap> {
+        let s = self.sections();
         // The vertices inside a large body are still inside it by the margin while the bodies
         // have moved less than their clearance allows.
-        let clearance = self.clearance();
-        if clearance.is_finite() && pair.moved_since(&self.found_at()) >= clearance - pair.margin {
-            return None;
+        if s.clearance.is_finite() {
+            let body = |w: &[u32]| {
+                let x = |k: usize| join(&w[2 * k..]);
+                let q = nalgebra::Quaternion::new(x(6), x(3), x(4), x(5));
+                let q = UnitQuaternion::new_unchecked(q);
+                (Vec3::new(x(0), x(1), x(2)), q, x(7))
+            };
+            let found_at = [body(&s.found_at[..16]), body(&s.found_at[16..])];
+            if pair.moved_since(&found_at) >= s.clearance - pair.margin {
+                return None;
+            }
         }
         CORNERS.with_borrow_mut(|(at, ring)| {
             at.clear();
-            for c in self.corners() {
-                at.push(pair.corner(c)?);
+            for c in s.corners.chunks_exact(4) {
+                at.push(pair.corner(corner_of(c))?);
             }
-            for (k, f) in self.near() {
-                // Near planes are listed for vertex corners only.
-                if !pair.vertex_inside(1 - self.side_of(k), f, &at[k]) {
+            for n in s.near.chunks_exact(2) {
+                // Near planes are listed for vertex corners only; the side is the corner's.
+                let (k, f) = (n[0] as usize, n[1]);
+                let side = (s.corners[4 * k] & 1) as u8;
+                if !pair.vertex_inside(1 - side, f, &at[k]) {
                     return None;
                 }
             }
             ring.clear();
-            ring.extend(self.rings().iter().map(|&k| at[k as usize]));
+            ring.extend(s.rings.iter().map(|&k| at[k as usize]));
             let mut acc = Acc::default();
             let mut start = 0;
-            for (side, end) in self.pieces() {
-                let _ = acc.piece(&ring[start..end], side == 1);
+            for piece in s.pieces.chunks_exact(3) {
+                let end = piece[2] as usize;
+                let _ = acc.piece(&ring[start..end], piece[0] == 1);
                 start = end;
             }
             let (volume, centroid) = acc.volume_centroid()?;
