@@ -267,6 +267,22 @@ impl Shape {
         Ok((out, offset, turn))
     }
 
+    /// The largest top eigenvalue over the vertices `v` of `M^-1/2 (|v|^2 - v v^T) M^-1/2`, `M`
+    /// the principal moments per unit density: how fast a spring at a vertex can turn the body
+    /// (`omega^2` per unit stiffness, at unit scale and density; see
+    /// [`super::world::World::critical_dt`]). At most `radius^2 / moments.min()`, and equal to
+    /// it for equal moments.
+    pub fn rotation_rate(&self) -> f64 {
+        let d = Mat3::from_diagonal(&self.moments.map(|m| 1.0 / m.sqrt()));
+        self.vertices
+            .iter()
+            .map(|v| {
+                let a = d * (Mat3::identity() * v.norm_squared() - v * v.transpose()) * d;
+                SymmetricEigen::new(a).eigenvalues.max()
+            })
+            .fold(0.0, f64::max)
+    }
+
     /// Number of faces.
     pub fn face_count(&self) -> usize {
         self.face_start.len() - 1
@@ -610,5 +626,44 @@ mod tests {
             let back = s.frame_in_mesh * v + s.centroid_in_mesh;
             assert!(m.vertices.iter().any(|w| (w - back).norm() < 1e-9));
         }
+    }
+
+    #[test]
+    fn rotation_rate_is_the_fastest_spring_at_a_vertex() {
+        // Brute force: omega^2 per unit stiffness of a spring along n at vertex v is
+        // (v x n) . M^-1 (v x n); its largest over many directions and all vertices.
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let rod = {
+            let c = cube(0.5);
+            let v = c
+                .vertices
+                .iter()
+                .map(|p| Vec3::new(p.x * 1.2, p.y * 0.3, p.z * 0.2));
+            let faces: Vec<Vec<u32>> = (0..c.face_count()).map(|f| c.face(f).to_vec()).collect();
+            Shape::from_mesh(&PolyMesh::from_faces("rod", v.collect(), &faces)).unwrap()
+        };
+        let cube_shape = Shape::from_mesh(&cube(0.5)).unwrap();
+        for s in [&rod, &cube_shape] {
+            let mut best: f64 = 0.0;
+            for _ in 0..20000 {
+                let n = (Vec3::new(rng.random(), rng.random(), rng.random()) - Vec3::repeat(0.5))
+                    .normalize();
+                for v in &s.vertices {
+                    let t = v.cross(&n);
+                    best = best.max((t.component_div(&s.moments)).dot(&t));
+                }
+            }
+            let rate = s.rotation_rate();
+            assert!(rate >= best && rate < best * 1.01, "{rate} against {best}");
+            assert!(rate <= s.radius * s.radius / s.moments.min() * (1.0 + 1e-12));
+        }
+        // Equal moments: r^2 / I exactly; an elongated rod: well below r^2 / I_min.
+        let c = &cube_shape;
+        assert!(
+            (c.rotation_rate() - c.radius * c.radius / c.moments.min()).abs()
+                < 1e-9 * c.rotation_rate()
+        );
+        assert!(rod.rotation_rate() < 0.2 * rod.radius * rod.radius / rod.moments.min());
     }
 }

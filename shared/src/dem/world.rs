@@ -472,18 +472,26 @@ impl World {
     }
 
     /// The critical time step of the stiffest oscillator: min over free bodies of
-    /// `sqrt(m / kn)` (translation) and `sqrt(I_min / (kn r^2))` (rotation, r the bounding
-    /// radius). Multiply by a safety factor below 1 for `dt`.
+    /// `sqrt(m / k)` (translation) and `1 / omega_r` (rotation), `k = max(kn, ks)`.
+    /// `omega_r` is the fastest rotation one spring can drive: a spring of stiffness `k` at a
+    /// point `r` of the body, along any direction, has `omega^2 = k (r x n) . I^-1 (r x n)`; its
+    /// largest over `n` is the top eigenvalue of `k I^-1/2 (|r|^2 - r r^T) I^-1/2`, and over
+    /// the hull (that eigenvalue is convex in `r`) it is largest at a vertex (see
+    /// [`Shape::rotation_rate`]). For a shape of equal moments that is `k r^2 / I`, `r` the
+    /// bounding radius; an elongated shape, whose smallest moment is about its long axis, gets
+    /// a longer step than `k r^2 / I_min` would give it. Multiply by a safety factor below 1 for
+    /// `dt`.
     pub fn critical_dt(&self) -> f64 {
         let k = self.material.kn.max(self.material.ks);
+        let rates: Vec<f64> = self.shapes.iter().map(Shape::rotation_rate).collect();
+        let rho = self.material.density;
         self.bodies
             .iter()
             .filter(|b| !b.fixed)
             .map(|b| {
-                let r = self.shapes[b.shape as usize].radius * b.scale;
-                (b.mass / k)
-                    .sqrt()
-                    .min((b.moments.min() / (k * r * r)).sqrt())
+                // Lengths scale by s, moments by rho s^5: the rate by 1 / (rho s^3).
+                let rotation = rates[b.shape as usize] / (rho * b.scale.powi(3));
+                (b.mass / k).sqrt().min(1.0 / (k * rotation).sqrt())
             })
             .fold(f64::INFINITY, f64::min)
     }
