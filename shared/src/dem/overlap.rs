@@ -721,6 +721,12 @@ fn swallowed(sa: &Shape, a: &Posed, sb: &Shape, b: &Posed, volume: f64) -> Vec3 
     -n * (volume / depth)
 }
 
+/// How far posed shape `b` reaches along `d`: the greatest `d . v` over its vertices (a climb
+/// for a large hull).
+pub fn reach_along(sb: &Shape, b: &Posed, d: &Vec3) -> f64 {
+    SCRATCH.with_borrow_mut(|sc| sc.side_b.climb_to_top(sb, b, d, 1.0))
+}
+
 /// The overlap of a posed shape B with the solid half-space `n . x <= d` (a plane wall whose
 /// outward normal is `n`): volume, centroid, and B's area vector inside the wall; the normal from
 /// the wall to B is `n` itself.
