@@ -27,6 +27,7 @@
 //! - [`plot`]: line charts from tables.
 //! - [`cli`]: what every tool shares: exit codes, broken pipes, stream helpers.
 //! - [`dem`]: the discrete element engine for rigid convex polyhedra.
+//! - [`pack`]: dense, isotropically consolidated specimens (the `pack` tool).
 
 pub mod cli;
 pub mod dem;
@@ -35,6 +36,7 @@ pub mod mass;
 pub mod math;
 pub mod mesh;
 pub mod obj;
+pub mod pack;
 pub mod plot;
 pub mod polygen;
 pub mod render;

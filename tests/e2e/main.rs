@@ -2,6 +2,7 @@
 
 mod bad_input;
 mod dem;
+mod pack;
 mod pipes;
 
 use std::io::Write;
@@ -22,6 +23,7 @@ pub fn run_env(tool: &str, args: &[&str], stdin: &[u8], env: &[(&str, &str)]) ->
         "simplify" => env!("CARGO_BIN_EXE_simplify"),
         "plot" => env!("CARGO_BIN_EXE_plot"),
         "dem" => env!("CARGO_BIN_EXE_dem"),
+        "pack" => env!("CARGO_BIN_EXE_pack"),
         other => panic!("no tool {other}"),
     };
     let mut child = Command::new(exe)

@@ -1,0 +1,698 @@
+//! Dense, isotropically consolidated specimens of polyhedra (the `pack` tool).
+//!
+//! The preparation, step by step (docs/pack.md tells why each choice):
+//! 1. **Sizes.** Particle `i` is template `i mod T`, its size drawn uniformly between
+//!    `size_min` and `size_max` ([`SizeMeasure`]: equivalent-sphere diameter by default). Unless
+//!    a count is given, particles are drawn until their solid volume fills the container at
+//!    `porosity`, rounded up to a multiple of `T` (equal numbers of each template).
+//! 2. **Cloud.** The container is scaled up by one factor in all directions until the particles
+//!    fill `cloud_fraction` of it, and they are placed there at random, largest first, each
+//!    with a uniformly random orientation, wherever it is inside and clear of the others (an
+//!    exact separation test). Nothing touches.
+//! 3. **Compaction.** No gravity (a 600 mm column of sand under gravity would vary its stress by
+//!    a tenth of the 100 kPa target). The two platens and the cylinder wall, all frictionless,
+//!    move in at one strain rate, so the cloud shrinks alike in every direction (an isotropic
+//!    fabric): the rate follows the mean wall stress under PFC's servo law (see [`servo`]),
+//!    capped at `max_strain_rate`. Particle friction is the preparation friction, damping
+//!    `prep_damping`. It ends when the mean stress is within `tolerance` of `p` and the
+//!    unbalanced-force ratio is below `prep_unbalanced`.
+//! 4. **Equilibrium.** The particle friction and damping become the material's, and each wall
+//!    follows its own servo until every wall stress is within `tolerance` of `p` and the
+//!    unbalanced-force ratio is below `unbalanced`. The walls then stop, and the state is the
+//!    specimen.
+
+use crate::dem::gjk;
+use crate::dem::shape::Shape;
+use crate::dem::wall::{Wall, WallKind};
+use crate::dem::world::{Material, Partner, World};
+use crate::mass::equivalent_diameter;
+use crate::math::Vec3;
+use nalgebra::{Quaternion, UnitQuaternion};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+use std::collections::HashMap;
+use std::f64::consts::PI;
+use thiserror::Error;
+
+/// The bottom platen's index among the walls (a plane, normal +z).
+pub const BOTTOM: usize = 0;
+/// The top platen's index (a plane, normal -z).
+pub const TOP: usize = 1;
+/// The cylinder wall's index.
+pub const SIDE: usize = 2;
+
+/// What a particle's size is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SizeMeasure {
+    /// The diameter of the sphere of the same volume (the default).
+    Equivalent,
+    /// The diameter of the smallest sphere about the centroid holding the particle.
+    Circumscribed,
+}
+
+impl SizeMeasure {
+    /// A template's size at scale 1.
+    pub fn of(self, s: &Shape) -> f64 {
+        match self {
+            SizeMeasure::Equivalent => equivalent_diameter(s.volume),
+            SizeMeasure::Circumscribed => 2.0 * s.radius,
+        }
+    }
+}
+
+/// How to make a specimen.
+#[derive(Clone, Debug, Serialize)]
+pub struct Params {
+    /// Container diameter and height, m.
+    pub diameter: f64,
+    pub height: f64,
+    /// Particle sizes, uniform between these, m.
+    pub size_min: f64,
+    pub size_max: f64,
+    pub size_measure: SizeMeasure,
+    /// Particle count; `None`: as many as fill the container at `porosity`.
+    pub count: Option<usize>,
+    /// The porosity the count is worked out for.
+    pub porosity: f64,
+    /// Isotropic consolidation stress, Pa.
+    pub pressure: f64,
+    /// Particle friction during compaction.
+    pub prep_friction: f64,
+    /// Local damping during compaction.
+    pub prep_damping: f64,
+    /// The specimen's material (friction and damping from step 4 on).
+    pub material: Material,
+    pub seed: u64,
+    /// Time step over the critical one.
+    pub safety: f64,
+    /// Largest relative difference of a wall's stress from `pressure` at the end.
+    pub tolerance: f64,
+    /// Unbalanced-force ratio that ends compaction, and the one that ends the preparation.
+    pub prep_unbalanced: f64,
+    pub unbalanced: f64,
+    /// Share of the cloud's container the particles fill.
+    pub cloud_fraction: f64,
+    /// The walls' fastest strain rate, 1/s.
+    pub max_strain_rate: f64,
+    /// Servo gain (PFC's alpha), 0 to 1.
+    pub gain: f64,
+    /// Steps allowed in all.
+    pub max_steps: u64,
+    /// Flat facets of the cylinder wall.
+    pub segments: u32,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            diameter: 0.3,
+            height: 0.6,
+            size_min: 0.010,
+            size_max: 0.040,
+            size_measure: SizeMeasure::Equivalent,
+            count: None,
+            porosity: 0.4,
+            pressure: 100e3,
+            prep_friction: 0.1,
+            prep_damping: 0.7,
+            material: Material::default(),
+            seed: 1,
+            safety: 0.2,
+            tolerance: 0.02,
+            prep_unbalanced: 1e-2,
+            unbalanced: 1e-3,
+            cloud_fraction: 0.2,
+            max_strain_rate: 4.0,
+            gain: 0.5,
+            max_steps: 2_000_000,
+            segments: 128,
+        }
+    }
+}
+
+/// Why no specimen.
+#[derive(Debug, Error, PartialEq)]
+pub enum PackError {
+    #[error("no templates (expected an OBJ stream of particle shapes)")]
+    NoTemplates,
+    #[error("{0}")]
+    Bad(String),
+    #[error("a particle of size {size} m ({measure:?}) spans {span:.4} m, more than the container's {what} of {limit} m")]
+    TooLarge {
+        size: f64,
+        measure: SizeMeasure,
+        span: f64,
+        what: &'static str,
+        limit: f64,
+    },
+    #[error("could not place particle {0} of the loose cloud without overlap after {1} tries, even in a container twice the size (lower --cloud-fraction)")]
+    Crowded(usize, usize),
+    #[error("not in equilibrium after {steps} steps ({phase}): wall stresses {stresses:?} Pa against {target} Pa, unbalanced-force ratio {unbalanced:.3e} (raise --max-steps)")]
+    NotSettled {
+        steps: u64,
+        phase: &'static str,
+        stresses: [f64; 3],
+        target: f64,
+        unbalanced: f64,
+    },
+}
+
+impl Params {
+    fn check(&self) -> Result<(), PackError> {
+        let positive = [
+            ("--diameter", self.diameter),
+            ("--height", self.height),
+            ("--size-min", self.size_min),
+            ("--size-max", self.size_max),
+            ("--pressure", self.pressure),
+            ("--max-strain-rate", self.max_strain_rate),
+            ("--unbalanced", self.unbalanced),
+            ("--prep-unbalanced", self.prep_unbalanced),
+            ("--tolerance", self.tolerance),
+        ];
+        for (name, v) in positive {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(PackError::Bad(format!(
+                    "{name} must be a positive number, got {v}"
+                )));
+            }
+        }
+        if self.size_min > self.size_max {
+            return Err(PackError::Bad(format!(
+                "--size-min {} is above --size-max {}",
+                self.size_min, self.size_max
+            )));
+        }
+        let unit = [
+            ("--porosity", self.porosity, false),
+            ("--cloud-fraction", self.cloud_fraction, false),
+            ("--prep-damping", self.prep_damping, true),
+            ("--gain", self.gain, false),
+            ("--safety", self.safety, false),
+        ];
+        for (name, v, zero) in unit {
+            let ok = if zero {
+                (0.0..1.0).contains(&v)
+            } else {
+                v > 0.0 && v < 1.0
+            };
+            if !ok {
+                return Err(PackError::Bad(format!("{name} must be in (0, 1), got {v}")));
+            }
+        }
+        if !(self.prep_friction >= 0.0 && self.prep_friction.is_finite()) {
+            return Err(PackError::Bad(format!(
+                "--prep-friction must be a friction coefficient of 0 or more, got {}",
+                self.prep_friction
+            )));
+        }
+        if self.count == Some(0) {
+            return Err(PackError::Bad("--count must be at least 1".into()));
+        }
+        if self.segments < 16 {
+            return Err(PackError::Bad(format!(
+                "--segments must be at least 16, got {}",
+                self.segments
+            )));
+        }
+        Ok(())
+    }
+
+    /// The cross-section's area at radius `r`: the inscribed polygon of the cylinder wall.
+    fn area(&self, r: f64) -> f64 {
+        let n = f64::from(self.segments);
+        0.5 * n * r * r * (2.0 * PI / n).sin()
+    }
+}
+
+/// A uniformly random rotation (Shoemake's method).
+fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
+    let (u1, u2, u3): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
+    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+    let (t2, t3) = (2.0 * PI * u2, 2.0 * PI * u3);
+    UnitQuaternion::from_quaternion(Quaternion::new(
+        b * t3.cos(),
+        a * t2.sin(),
+        a * t2.cos(),
+        b * t3.sin(),
+    ))
+}
+
+/// The loose cloud (steps 1 and 2): bodies in an enlarged container, nothing touching, the
+/// preparation's friction and damping, no gravity, time step `safety` x critical.
+pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
+    p.check()?;
+    if templates.is_empty() {
+        return Err(PackError::NoTemplates);
+    }
+    let t = templates.len();
+    let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
+    // Step 1: (template, scale), drawn in order.
+    let target = (1.0 - p.porosity) * p.area(0.5 * p.diameter) * p.height;
+    let mut picks: Vec<(u32, f64)> = Vec::new();
+    let mut solid = 0.0;
+    loop {
+        let done = match p.count {
+            Some(n) => picks.len() >= n,
+            None => solid >= target && picks.len() % t == 0,
+        };
+        if done {
+            break;
+        }
+        let shape = (picks.len() % t) as u32;
+        let s = &templates[shape as usize];
+        let size = if p.size_max > p.size_min {
+            rng.random_range(p.size_min..p.size_max)
+        } else {
+            p.size_min
+        };
+        let scale = size / p.size_measure.of(s);
+        solid += s.volume * scale.powi(3);
+        picks.push((shape, scale));
+    }
+    // The largest particle must fit the container.
+    let span = |&(shape, scale): &(u32, f64)| 2.0 * templates[shape as usize].radius * scale;
+    let widest = picks.iter().map(span).fold(0.0, f64::max);
+    for (what, limit) in [("diameter", p.diameter), ("height", p.height)] {
+        if widest >= limit {
+            let (shape, scale) = *picks.iter().find(|x| span(x) == widest).expect("widest");
+            return Err(PackError::TooLarge {
+                size: scale * p.size_measure.of(&templates[shape as usize]),
+                measure: p.size_measure,
+                span: widest,
+                what,
+                limit,
+            });
+        }
+    }
+    // Step 2: the cloud's container, and the particles in it, largest first. Where they do
+    // not fit (a small container's walls leave less room), the container grows by 5 % and the
+    // placing starts again, up to twice the first size.
+    let (r0, h0) = (0.5 * p.diameter, p.height);
+    let first = (solid / p.cloud_fraction / (p.area(r0) * h0))
+        .cbrt()
+        .max(1.0);
+    let mut grow = first;
+    let poses = loop {
+        let inner = r0 * grow * (PI / f64::from(p.segments)).cos();
+        match place(&templates, &picks, inner, h0 * grow, p, &mut rng) {
+            Ok(poses) => break poses,
+            Err(_) if grow < 2.0 * first => grow *= 1.05,
+            Err(i) => return Err(PackError::Crowded(i, TRIES)),
+        }
+    };
+    let (r0, h0) = (r0 * grow, h0 * grow);
+    let material = Material {
+        friction: p.prep_friction,
+        damping: p.prep_damping,
+        ..p.material
+    };
+    let mut w = World::new(material, Vec3::zeros());
+    for s in templates {
+        w.add_shape(s);
+    }
+    for (&(shape, scale), &(c, rot)) in picks.iter().zip(&poses) {
+        w.add_body(shape, scale, c, rot);
+    }
+    w.walls.push(Wall::plane(Vec3::zeros(), Vec3::z()));
+    w.walls
+        .push(Wall::plane(Vec3::new(0.0, 0.0, h0), -Vec3::z()));
+    w.walls.push(Wall::cylinder(
+        Vec3::new(0.0, 0.0, -0.5 * h0),
+        Vec3::z(),
+        r0,
+        2.0 * h0,
+        p.segments,
+    ));
+    w.dt = p.safety * w.critical_dt();
+    Ok(w)
+}
+
+/// Tries per particle before [`place`] gives up.
+const TRIES: usize = 20_000;
+
+/// Uniformly random poses for `picks` (template, scale), largest first, inside a cylinder of
+/// radius `inner` from z = 0 to `h`, clear of each other by a thousandth of the smallest size;
+/// `Err(i)` when particle `i` found no room in [`TRIES`] tries.
+fn place(
+    templates: &[Shape],
+    picks: &[(u32, f64)],
+    inner: f64,
+    h0: f64,
+    p: &Params,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<(Vec3, UnitQuaternion<f64>)>, usize> {
+    let radii: Vec<f64> = (picks.iter())
+        .map(|&(shape, scale)| templates[shape as usize].radius * scale)
+        .collect();
+    let widest = 2.0 * radii.iter().copied().fold(0.0, f64::max);
+    let gap = 1e-3 * p.size_min;
+    let mut order: Vec<usize> = (0..picks.len()).collect();
+    order.sort_by(|&a, &b| radii[b].total_cmp(&radii[a]).then(a.cmp(&b)));
+    // A grid cell as wide as the widest particle: particles that may overlap are in
+    // neighbouring cells.
+    let cell = widest.max(1e-12);
+    let key = |x: &Vec3| {
+        (
+            (x.x / cell).floor() as i64,
+            (x.y / cell).floor() as i64,
+            (x.z / cell).floor() as i64,
+        )
+    };
+    let mut grid: HashMap<(i64, i64, i64), Vec<usize>> = HashMap::new();
+    let mut poses = vec![(Vec3::zeros(), UnitQuaternion::identity()); picks.len()];
+    let mut corners: Vec<Vec<Vec3>> = vec![Vec::new(); picks.len()];
+    for &i in &order {
+        let (shape, scale) = picks[i];
+        let s = &templates[shape as usize];
+        let r = radii[i];
+        let mut tries = 0;
+        let (c, rot, verts) = loop {
+            if tries == TRIES {
+                return Err(i);
+            }
+            tries += 1;
+            let rot = random_rotation(rng);
+            let c = Vec3::new(
+                rng.random_range(-inner..=inner),
+                rng.random_range(-inner..=inner),
+                rng.random_range(0.0..=h0),
+            );
+            let verts: Vec<Vec3> = s.vertices.iter().map(|v| c + rot * (v * scale)).collect();
+            let inside = verts
+                .iter()
+                .all(|x| x.xy().norm() < inner - gap && x.z > gap && x.z < h0 - gap);
+            if !inside {
+                continue;
+            }
+            let (kx, ky, kz) = key(&c);
+            let clear = (-1..=1).all(|dx| {
+                (-1..=1).all(|dy| {
+                    (-1..=1).all(|dz| {
+                        grid.get(&(kx + dx, ky + dy, kz + dz)).is_none_or(|near| {
+                            near.iter().all(|&j| {
+                                let d = poses[j].0 - c;
+                                d.norm_squared() > (r + radii[j] + gap).powi(2)
+                                    || gjk::separated(&verts, &corners[j], &d, gap)
+                            })
+                        })
+                    })
+                })
+            });
+            if clear {
+                break (c, rot, verts);
+            }
+        };
+        poses[i] = (c, rot);
+        corners[i] = verts;
+        grid.entry(key(&c)).or_default().push(i);
+    }
+    Ok(poses)
+}
+
+/// The container of a specimen: (radius, bottom z, top z).
+pub fn container(w: &World) -> (f64, f64, f64) {
+    let plane = |k: usize| match &w.walls[k].kind {
+        WallKind::Plane { offset, .. } => *offset,
+        _ => f64::NAN,
+    };
+    let radius = match &w.walls[SIDE].kind {
+        WallKind::Cylinder { radius, .. } => *radius,
+        _ => f64::NAN,
+    };
+    (radius, plane(BOTTOM), -plane(TOP))
+}
+
+/// Wall stresses (bottom, top, side; compression positive, Pa) and each wall's contact count.
+pub fn wall_stresses(w: &World, p: &Params) -> ([f64; 3], [usize; 3]) {
+    let (radius, bottom, top) = container(w);
+    let area = p.area(radius);
+    let mut counts = [0usize; 3];
+    let mut radial = 0.0;
+    let first = w.contacts.lower_bound(&(Partner::Wall(0), 0));
+    for (&(partner, _), c) in w.contacts.iter().skip(first) {
+        let Partner::Wall(k) = partner else { continue };
+        let k = k as usize;
+        if k < 3 {
+            counts[k] += 1;
+        }
+        if k == SIDE {
+            let out = Vec3::new(c.point.x, c.point.y, 0.0);
+            let len = out.norm();
+            if len > 0.0 {
+                let push = -(c.normal * c.normal_force + c.shear);
+                radial += push.dot(&out) / len;
+            }
+        }
+    }
+    let side = 2.0 * (p.segments as f64) * radius * (PI / p.segments as f64).sin();
+    (
+        [
+            -w.walls[BOTTOM].force.z / area,
+            w.walls[TOP].force.z / area,
+            radial / (side * (top - bottom)),
+        ],
+        counts,
+    )
+}
+
+/// The walls' speeds (bottom, top, side; inward positive, m/s) under PFC's servo: each wall
+/// `gain (p - sigma) A / (kn N dt)`, `N` its contacts (at least 1) and `A` its area, capped at
+/// `max_strain_rate` times the wall's distance from the centre. With `common`, every wall moves
+/// at one strain rate instead, the smallest servo gain's acting on the mean stress
+/// `(sigma_axial + 2 sigma_side) / 3`: the specimen shrinks alike in every direction.
+fn servo(
+    w: &World,
+    p: &Params,
+    stresses: &[f64; 3],
+    counts: &[usize; 3],
+    common: bool,
+) -> [f64; 3] {
+    let (radius, bottom, top) = container(w);
+    let half = [0.5 * (top - bottom), 0.5 * (top - bottom), radius];
+    let area = p.area(radius);
+    let areas = [area, area, 2.0 * PI * radius * (top - bottom)];
+    let (kn, dt) = (w.material.kn, w.dt);
+    let gain = |k: usize| p.gain * areas[k] / (kn * counts[k].max(1) as f64 * dt);
+    if common {
+        let mean = (0.5 * (stresses[BOTTOM] + stresses[TOP]) + 2.0 * stresses[SIDE]) / 3.0;
+        let g = (0..3)
+            .map(|k| gain(k) / half[k])
+            .fold(f64::INFINITY, f64::min);
+        let rate = (g * (p.pressure - mean)).clamp(-p.max_strain_rate, p.max_strain_rate);
+        half.map(|h| rate * h)
+    } else {
+        [0, 1, 2].map(|k| {
+            let cap = p.max_strain_rate * half[k];
+            (gain(k) * (p.pressure - stresses[k])).clamp(-cap, cap)
+        })
+    }
+}
+
+/// Moves the walls at `speeds` (see [`servo`]).
+fn set_speeds(w: &mut World, speeds: [f64; 3]) {
+    w.walls[BOTTOM].velocity = Vec3::new(0.0, 0.0, speeds[BOTTOM]);
+    w.walls[TOP].velocity = Vec3::new(0.0, 0.0, -speeds[TOP]);
+    if let WallKind::Cylinder { radial_rate, .. } = &mut w.walls[SIDE].kind {
+        *radial_rate = -speeds[SIDE];
+    }
+}
+
+/// Where a preparation is, for progress reports.
+#[derive(Clone, Copy, Debug)]
+pub struct Status {
+    pub phase: &'static str,
+    pub step: u64,
+    pub stresses: [f64; 3],
+    pub porosity: f64,
+    pub unbalanced: f64,
+}
+
+/// Solid volume of the bodies, m^3.
+fn solid_volume(w: &World) -> f64 {
+    w.bodies
+        .iter()
+        .map(|b| w.shapes[b.shape as usize].volume * b.scale.powi(3))
+        .sum()
+}
+
+/// Porosity of the specimen in its container.
+pub fn porosity(w: &World, p: &Params) -> f64 {
+    let (radius, bottom, top) = container(w);
+    1.0 - solid_volume(w) / (p.area(radius) * (top - bottom))
+}
+
+/// Steps 3 and 4 on a cloud from [`cloud`]: compacts it and brings it to equilibrium;
+/// `report` sees the status every `every` steps. The walls are at rest at the end.
+pub fn consolidate(
+    w: &mut World,
+    p: &Params,
+    every: u64,
+    mut report: impl FnMut(&Status),
+) -> Result<(), PackError> {
+    let start = w.step;
+    let phases: [(&'static str, f64); 2] = [
+        ("compaction", p.prep_unbalanced),
+        ("equilibrium", p.unbalanced),
+    ];
+    for (k, (phase, unbalanced)) in phases.into_iter().enumerate() {
+        if k == 1 {
+            w.material.friction = p.material.friction;
+            w.material.damping = p.material.damping;
+        }
+        loop {
+            let (stresses, counts) = wall_stresses(w, p);
+            let within = stresses
+                .iter()
+                .all(|s| (s - p.pressure).abs() <= p.tolerance * p.pressure);
+            let status = Status {
+                phase,
+                step: w.step - start,
+                stresses,
+                porosity: porosity(w, p),
+                unbalanced: w.unbalanced,
+            };
+            if status.step % every == 0 {
+                report(&status);
+            }
+            let mean = (0.5 * (stresses[BOTTOM] + stresses[TOP]) + 2.0 * stresses[SIDE]) / 3.0;
+            let settled = if k == 0 {
+                (mean - p.pressure).abs() <= p.tolerance * p.pressure
+            } else {
+                within
+            };
+            if settled && w.unbalanced <= unbalanced {
+                break;
+            }
+            if status.step >= p.max_steps {
+                return Err(PackError::NotSettled {
+                    steps: status.step,
+                    phase,
+                    stresses,
+                    target: p.pressure,
+                    unbalanced: w.unbalanced,
+                });
+            }
+            let speeds = servo(w, p, &stresses, &counts, k == 0);
+            set_speeds(w, speeds);
+            w.step();
+        }
+    }
+    set_speeds(w, [0.0; 3]);
+    Ok(())
+}
+
+/// What a specimen is: the summary `pack` reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    pub particles: usize,
+    pub templates: usize,
+    /// The container at the end: inner diameter (the cylinder's radius x 2) and height, m.
+    pub diameter: f64,
+    pub height: f64,
+    pub porosity: f64,
+    pub void_ratio: f64,
+    /// Particle-particle contacts x 2 over particles.
+    pub coordination: f64,
+    /// The same without rattlers (particles of fewer than two particle contacts):
+    /// (2 C - N1) / (N - N0 - N1), C the particle-particle contacts.
+    pub mechanical_coordination: f64,
+    /// Bottom, top and side wall stresses, Pa, and the largest relative difference from the
+    /// target.
+    pub wall_stresses: [f64; 3],
+    pub stress_error: f64,
+    pub unbalanced: f64,
+    /// Deviatoric anisotropy of the particle-particle contact normals: (15/2) sqrt(3/2 d:d),
+    /// d the deviator of the fabric tensor <n n> (a_c of the paper's Fig. 17; 0 isotropic).
+    pub anisotropy: f64,
+    /// Largest contact depth over the size (equivalent-sphere diameter) of the smaller body.
+    pub max_overlap: f64,
+    /// Particles reaching out of the container by more than 1 % of their size.
+    pub outside: usize,
+    pub contacts: usize,
+    pub steps: u64,
+    pub time: f64,
+    pub dt: f64,
+}
+
+/// The summary of specimen `w` made with `p`.
+pub fn summary(w: &World, p: &Params) -> Summary {
+    let n = w.bodies.len();
+    let (radius, bottom, top) = container(w);
+    let size = |b: usize| {
+        let body = &w.bodies[b];
+        equivalent_diameter(w.shapes[body.shape as usize].volume) * body.scale
+    };
+    let mut ends = vec![0usize; n];
+    let (mut pairs, mut fabric, mut max_overlap) = (0usize, nalgebra::Matrix3::zeros(), 0.0f64);
+    for (&(partner, b), c) in &w.contacts {
+        let smaller = match partner {
+            Partner::Body(a) => {
+                ends[a as usize] += 1;
+                ends[b as usize] += 1;
+                pairs += 1;
+                fabric += c.normal * c.normal.transpose();
+                size(a as usize).min(size(b as usize))
+            }
+            Partner::Wall(_) => size(b as usize),
+        };
+        max_overlap = max_overlap.max(c.depth / smaller);
+    }
+    let anisotropy = if pairs > 0 {
+        let f = fabric / pairs as f64;
+        let d = f - nalgebra::Matrix3::identity() * (f.trace() / 3.0);
+        7.5 * (1.5 * d.component_mul(&d).sum()).sqrt()
+    } else {
+        0.0
+    };
+    let (n0, n1) = (
+        ends.iter().filter(|&&e| e == 0).count(),
+        ends.iter().filter(|&&e| e == 1).count(),
+    );
+    let outside = (0..n)
+        .filter(|&b| {
+            let body = &w.bodies[b];
+            let slack = 0.01 * size(b);
+            w.shapes[body.shape as usize].vertices.iter().any(|v| {
+                let x = body.pos + body.rot * (v * body.scale);
+                x.xy().norm() > radius + slack || x.z < bottom - slack || x.z > top + slack
+            })
+        })
+        .count();
+    let (stresses, _) = wall_stresses(w, p);
+    let phi = porosity(w, p);
+    let mech = n as f64 - n0 as f64 - n1 as f64;
+    Summary {
+        particles: n,
+        templates: w.shapes.len(),
+        diameter: 2.0 * radius,
+        height: top - bottom,
+        porosity: phi,
+        void_ratio: phi / (1.0 - phi),
+        coordination: if n > 0 {
+            2.0 * pairs as f64 / n as f64
+        } else {
+            0.0
+        },
+        mechanical_coordination: if mech > 0.0 {
+            (2.0 * pairs as f64 - n1 as f64) / mech
+        } else {
+            0.0
+        },
+        wall_stresses: stresses,
+        stress_error: stresses
+            .iter()
+            .map(|s| (s - p.pressure).abs() / p.pressure)
+            .fold(0.0, f64::max),
+        unbalanced: w.unbalanced,
+        anisotropy,
+        max_overlap,
+        outside,
+        contacts: w.contacts.len(),
+        steps: w.step,
+        time: w.time,
+        dt: w.dt,
+    }
+}

@@ -1,0 +1,178 @@
+//! The `pack` tool: broken input and arguments, and a small specimen that must meet the
+//! issue's final-state conditions, with the same bytes on 1 and 2 threads.
+
+use super::{fixture, run_env};
+
+/// Runs pack on bad input: exit 1 (2 for usage), the message holds every needle, no output.
+fn rejects(args: &[&str], stdin: &[u8], code: i32, needles: &[&str]) {
+    let out = run_env("pack", args, stdin, &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(code), "pack {args:?}: {err}");
+    for n in needles {
+        assert!(err.contains(n), "pack {args:?}: expected '{n}' in: {err}");
+    }
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        out.stdout.is_empty(),
+        "pack {args:?} wrote output on failure"
+    );
+}
+
+/// The fixture cube with every face turned inside out.
+fn inside_out_cube() -> Vec<u8> {
+    let text = String::from_utf8(fixture("cube.obj")).unwrap();
+    text.lines()
+        .map(|l| match l.strip_prefix("f ") {
+            Some(f) => format!("f {}\n", f.split(' ').rev().collect::<Vec<_>>().join(" ")),
+            None => format!("{l}\n"),
+        })
+        .collect::<String>()
+        .into_bytes()
+}
+
+#[test]
+fn pack_rejects_broken_templates_and_arguments() {
+    let nine = fixture("templates_seed7.obj");
+    rejects(&[], b"", 1, &["no objects"]);
+    rejects(&[], b"# nothing\n", 1, &["no objects"]);
+    let open = "o open\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n";
+    rejects(
+        &[],
+        open.as_bytes(),
+        1,
+        &["'open'", "line 1", "boundary edge"],
+    );
+    rejects(&[], &inside_out_cube(), 1, &["'cube'", "point inwards"]);
+    rejects(
+        &["--size-min", "0.03", "--size-max", "0.02"],
+        &nine,
+        1,
+        &["--size-min 0.03 is above --size-max 0.02"],
+    );
+    rejects(
+        &["--diameter", "0.05", "--height", "0.1"],
+        &nine,
+        1,
+        &["more than the container's diameter"],
+    );
+    for (flag, value) in [
+        ("--pressure", "-1"),
+        ("--diameter", "0"),
+        ("--porosity", "1.2"),
+        ("--prep-friction", "-0.1"),
+        ("--tolerance", "nan"),
+        ("--count", "0"),
+        ("--damping", "1"),
+        ("--kn", "0"),
+    ] {
+        rejects(&[flag, value], &nine, 1, &[flag]);
+    }
+    rejects(&["--size-min", "ten"], &nine, 2, &["invalid value"]);
+    // Too few steps to settle: a clear error, and no half-made specimen on standard output.
+    rejects(
+        &[
+            "--count",
+            "9",
+            "--diameter",
+            "0.1",
+            "--height",
+            "0.2",
+            "--size-min",
+            "0.012",
+            "--size-max",
+            "0.016",
+            "--max-steps",
+            "100",
+        ],
+        &nine,
+        1,
+        &["not in equilibrium after 100 steps", "--max-steps"],
+    );
+}
+
+/// One summary field as a number.
+fn field(summary: &serde_json::Value, key: &str) -> f64 {
+    summary[key]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no {key} in {summary}"))
+}
+
+#[test]
+fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_threads() {
+    // 36 particles of the nine templates, soft (kn = 1e6 N/m at 1 kPa: the paper's overlap per
+    // size of 1e8 N/m at 100 kPa, at a 10 times longer time step). About a minute.
+    let dir = std::env::temp_dir().join(format!("pack-e2e-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let nine = fixture("templates_seed7.obj");
+    let runs: Vec<(Vec<u8>, serde_json::Value)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = ["1", "2"]
+            .map(|threads| {
+                let (dir, nine) = (&dir, &nine);
+                scope.spawn(move || {
+                    let path = dir.join(format!("summary{threads}.json"));
+                    let args = [
+                        "--count",
+                        "36",
+                        "--diameter",
+                        "0.06",
+                        "--height",
+                        "0.12",
+                        "--size-min",
+                        "0.012",
+                        "--size-max",
+                        "0.02",
+                        "--kn",
+                        "1e6",
+                        "--ks",
+                        "5e5",
+                        "--pressure",
+                        "1e3",
+                        "--summary",
+                        path.to_str().unwrap(),
+                    ];
+                    let out = run_env("pack", &args, nine, &[("RAYON_NUM_THREADS", threads)]);
+                    assert!(
+                        out.status.success(),
+                        "pack failed: {}",
+                        String::from_utf8_lossy(&out.stderr)
+                    );
+                    let text = std::fs::read_to_string(&path).unwrap();
+                    (out.stdout, serde_json::from_str(&text).unwrap())
+                })
+            })
+            .into();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(
+        runs[0].0 == runs[1].0,
+        "1 and 2 threads gave different specimens"
+    );
+    let s = &runs[0].1;
+    assert_eq!(field(s, "particles"), 36.0);
+    // The final state: every wall within 2 % of the target, equilibrium, nothing out
+    // of the container, overlaps below 1 % of a size.
+    let stresses = s["wall_stresses"].as_array().unwrap();
+    for x in stresses {
+        let x = x.as_f64().unwrap();
+        assert!((x - 1e3).abs() <= 20.0, "wall stress {x} Pa");
+    }
+    assert!(field(s, "stress_error") <= 0.02);
+    assert!(field(s, "unbalanced") <= 1e-3);
+    assert_eq!(field(s, "outside"), 0.0);
+    let overlap = field(s, "max_overlap");
+    assert!(overlap > 0.0 && overlap < 0.01, "largest overlap {overlap}");
+    // Compacted at one strain rate in every direction: the container keeps its 2:1 shape.
+    let aspect = field(s, "height") / field(s, "diameter");
+    assert!((aspect - 2.0).abs() < 0.02, "height / diameter {aspect}");
+    let porosity = field(s, "porosity");
+    assert!(porosity > 0.3 && porosity < 0.7, "porosity {porosity}");
+    assert!(field(s, "coordination") > 3.0);
+    // The specimen is a dem state: it reads back and runs on.
+    let on = run_env("dem", &["--steps", "10"], &runs[0].0, &[]);
+    assert!(
+        on.status.success(),
+        "{}",
+        String::from_utf8_lossy(&on.stderr)
+    );
+}

@@ -1,0 +1,259 @@
+//! pack: a dense, isotropically consolidated specimen of polyhedra, ready for the triaxial test.
+
+use anyhow::{bail, Context};
+use clap::{Parser, ValueEnum};
+use shared::cli;
+use shared::dem::{shape::Shape, state, world::Material};
+use shared::mass::MassProps;
+use shared::pack::{self, Params, SizeMeasure};
+use std::io::Write;
+use std::process::ExitCode;
+
+const EXAMPLES: &str = "\
+Examples:
+  polygen --faces 6..14 --seed 7 | abrade --levels 2 | pack --seed 1 > ab2.jsonl
+  polygen --faces 6..14 --seed 7 | pack --diameter 0.15 --height 0.3 --summary ip.json > ip.jsonl
+  pack --count 60 --diameter 0.1 --height 0.2 --size-min 0.012 --size-max 0.02 < nine.obj > small.jsonl
+  pack ... | dem --steps 1000 > later.jsonl      (the specimen is a dem state: it runs on)
+
+Every object of the OBJ stream on standard input is a template; particle i is template i mod T,
+so the templates come in equal numbers. The specimen goes to standard output as a dem state
+(JSON lines, docs/dem-state.md): bodies, contacts with their shear springs, and three walls:
+0 the bottom platen, 1 the top platen, 2 the cylinder (all frictionless, at rest). A summary
+(count, porosity, void ratio, coordination, wall stresses, unbalanced-force ratio, contact-normal
+anisotropy, largest overlap, wall-clock time) goes to standard error, and as JSON to --summary.
+
+How (docs/pack.md): a loose cloud without contacts in the container enlarged to fit it, no
+gravity; servo-controlled walls compact it isotropically at --prep-friction until every wall is
+within --tolerance of --pressure; then the particle friction is restored and the servo holds
+until the walls are within --tolerance again and the unbalanced-force ratio is below
+--unbalanced. Lengths in m, stresses in Pa.";
+
+/// What particle size means.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Measure {
+    /// Diameter of the sphere of equal volume
+    Equivalent,
+    /// Diameter of the sphere about the centroid that holds the particle
+    Circumscribed,
+}
+
+/// Turns particle templates (an OBJ stream on standard input) into a dense specimen consolidated
+/// isotropically in a cylinder between two platens; writes it as a dem state to standard output.
+#[derive(Parser, Debug)]
+#[command(version, after_help = EXAMPLES)]
+struct Cli {
+    /// Container diameter, m
+    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
+    diameter: f64,
+    /// Container height, m
+    #[arg(long, default_value_t = 0.6, allow_negative_numbers = true)]
+    height: f64,
+    /// Smallest particle size, m
+    #[arg(long, default_value_t = 0.010, allow_negative_numbers = true)]
+    size_min: f64,
+    /// Largest particle size, m (sizes are uniform between the two)
+    #[arg(long, default_value_t = 0.040, allow_negative_numbers = true)]
+    size_max: f64,
+    /// What a size is
+    #[arg(long, value_enum, default_value_t = Measure::Equivalent)]
+    size_measure: Measure,
+    /// Number of particles (default: enough to fill the container at --porosity)
+    #[arg(long)]
+    count: Option<usize>,
+    /// Porosity the default count is worked out for
+    #[arg(long, default_value_t = 0.4, allow_negative_numbers = true)]
+    porosity: f64,
+    /// Isotropic consolidation stress, Pa
+    #[arg(long, default_value_t = 100e3, allow_negative_numbers = true)]
+    pressure: f64,
+    /// Particle friction while compacting (lower: denser)
+    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
+    prep_friction: f64,
+    /// Local damping while compacting
+    #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
+    prep_damping: f64,
+    /// The specimen's particle friction (the paper's 0.5)
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    friction: f64,
+    /// The specimen's local damping (the paper's 0.3)
+    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
+    damping: f64,
+    /// Density, kg/m^3
+    #[arg(long, default_value_t = 2600.0, allow_negative_numbers = true)]
+    density: f64,
+    /// Normal contact stiffness, N/m
+    #[arg(long, default_value_t = 1e8, allow_negative_numbers = true)]
+    kn: f64,
+    /// Shear contact stiffness, N/m
+    #[arg(long, default_value_t = 5e7, allow_negative_numbers = true)]
+    ks: f64,
+    /// Seed of the sizes, positions and orientations
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Time step over the critical one
+    #[arg(long, default_value_t = 0.2, allow_negative_numbers = true)]
+    safety: f64,
+    /// Largest relative difference of a wall stress from --pressure at the end
+    #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
+    tolerance: f64,
+    /// Unbalanced-force ratio (mean net force over mean contact force) at the end
+    #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
+    unbalanced: f64,
+    /// Unbalanced-force ratio that ends compaction
+    #[arg(long, default_value_t = 1e-2, allow_negative_numbers = true)]
+    prep_unbalanced: f64,
+    /// Share of the loose cloud's container that the particles fill (their solid volume)
+    #[arg(long, default_value_t = 0.2, allow_negative_numbers = true)]
+    cloud_fraction: f64,
+    /// Fastest strain rate of the walls, 1/s
+    #[arg(long, default_value_t = 4.0, allow_negative_numbers = true)]
+    max_strain_rate: f64,
+    /// Servo gain (0 to 1)
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    gain: f64,
+    /// Steps allowed in all
+    #[arg(long, default_value_t = 2_000_000)]
+    max_steps: u64,
+    /// Flat facets of the cylinder wall
+    #[arg(long, default_value_t = 128)]
+    segments: u32,
+    /// Write the summary as one JSON line to FILE
+    #[arg(long)]
+    summary: Option<std::path::PathBuf>,
+    /// Steps between progress lines on standard error
+    #[arg(long, default_value_t = 5000)]
+    every: u64,
+}
+
+fn main() -> ExitCode {
+    cli::run("pack", || run(Cli::parse()))
+}
+
+/// The templates: every object of the stream, checked closed and outward, as its hull's shape.
+fn templates() -> anyhow::Result<Vec<Shape>> {
+    let objects = shared::obj::read_all(cli::stdin()).context("reading the templates")?;
+    cli::require_objects(objects.len() as u64)?;
+    objects
+        .iter()
+        .map(|o| {
+            let what = || format!("object '{}' (line {})", o.mesh.name, o.line);
+            o.mesh.topology(Some(&o.face_lines)).with_context(what)?;
+            let v = MassProps::of(&o.mesh).volume;
+            if v.is_nan() || v <= 0.0 {
+                bail!("{}: the faces point inwards (volume {v:e}); faces must be counter-clockwise seen from outside", what());
+            }
+            Shape::from_mesh(&o.mesh).with_context(what)
+        })
+        .collect()
+}
+
+fn run(args: Cli) -> anyhow::Result<()> {
+    if args.every == 0 {
+        bail!("--every must be at least 1");
+    }
+    for (name, v) in [
+        ("--density", args.density),
+        ("--kn", args.kn),
+        ("--ks", args.ks),
+    ] {
+        if !(v > 0.0 && v.is_finite()) {
+            bail!("{name} must be a positive number, got {v}");
+        }
+    }
+    if !(args.friction >= 0.0 && args.friction.is_finite()) {
+        bail!("--friction must be 0 or more, got {}", args.friction);
+    }
+    if !(0.0..1.0).contains(&args.damping) {
+        bail!("--damping must be in [0, 1), got {}", args.damping);
+    }
+    let params = Params {
+        diameter: args.diameter,
+        height: args.height,
+        size_min: args.size_min,
+        size_max: args.size_max,
+        size_measure: match args.size_measure {
+            Measure::Equivalent => SizeMeasure::Equivalent,
+            Measure::Circumscribed => SizeMeasure::Circumscribed,
+        },
+        count: args.count,
+        porosity: args.porosity,
+        pressure: args.pressure,
+        prep_friction: args.prep_friction,
+        prep_damping: args.prep_damping,
+        material: Material {
+            density: args.density,
+            kn: args.kn,
+            ks: args.ks,
+            friction: args.friction,
+            wall_friction: 0.0,
+            damping: args.damping,
+        },
+        seed: args.seed,
+        safety: args.safety,
+        tolerance: args.tolerance,
+        prep_unbalanced: args.prep_unbalanced,
+        unbalanced: args.unbalanced,
+        cloud_fraction: args.cloud_fraction,
+        max_strain_rate: args.max_strain_rate,
+        gain: args.gain,
+        max_steps: args.max_steps,
+        segments: args.segments,
+    };
+    let shapes = templates()?;
+    let clock = std::time::Instant::now();
+    let mut world = pack::cloud(shapes, &params)?;
+    let (r0, b0, t0) = pack::container(&world);
+    eprintln!(
+        "pack: {} particles of {} templates in a loose cloud {:.4} m across and {:.4} m high; time step {:.4e} s",
+        world.bodies.len(),
+        world.shapes.len(),
+        2.0 * r0,
+        t0 - b0,
+        world.dt
+    );
+    pack::consolidate(&mut world, &params, args.every, |s| {
+        eprintln!(
+            "pack: {} step {}: wall stresses {:.4e} {:.4e} {:.4e} Pa, porosity {:.4}, unbalanced {:.3e}",
+            s.phase, s.step, s.stresses[0], s.stresses[1], s.stresses[2], s.porosity, s.unbalanced
+        );
+    })?;
+    let secs = clock.elapsed().as_secs_f64();
+    let summary = pack::summary(&world, &params);
+    let mut line = serde_json::to_value(&summary)?;
+    line["wall_clock"] = serde_json::json!(secs);
+    line["prep_friction"] = serde_json::json!(params.prep_friction);
+    line["friction"] = serde_json::json!(params.material.friction);
+    line["pressure"] = serde_json::json!(params.pressure);
+    line["size_measure"] = serde_json::to_value(params.size_measure)?;
+    eprintln!(
+        "pack: {} particles, {:.4} m across, {:.4} m high: porosity {:.4}, void ratio {:.4}, coordination {:.3} ({:.3} without rattlers)",
+        summary.particles, summary.diameter, summary.height, summary.porosity, summary.void_ratio,
+        summary.coordination, summary.mechanical_coordination
+    );
+    eprintln!(
+        "pack: wall stresses {:.4e} {:.4e} {:.4e} Pa (largest error {:.2} %), unbalanced {:.3e}, anisotropy {:.4}, largest overlap {:.3e} of a size, {} outside; {} steps in {:.1} s",
+        summary.wall_stresses[0], summary.wall_stresses[1], summary.wall_stresses[2],
+        100.0 * summary.stress_error, summary.unbalanced, summary.anisotropy, summary.max_overlap,
+        summary.outside, summary.steps, secs
+    );
+    if let Some(path) = &args.summary {
+        let mut f =
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        serde_json::to_writer(&mut f, &line)?;
+        f.write_all(b"\n")?;
+    }
+    let mut out = cli::stdout();
+    state::write_world(&world, &mut out)?;
+    out.flush()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn cli_is_well_formed() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
+    }
+}
