@@ -13,9 +13,11 @@
 //!    a tenth of the 100 kPa target). The two platens and the cylinder wall, all frictionless,
 //!    move in at one strain rate, so the cloud shrinks alike in every direction (an isotropic
 //!    fabric): the rate follows the mean wall stress under PFC's servo law (see [`servo`]),
-//!    capped at `max_strain_rate`. Particle friction is the preparation friction, damping
-//!    `prep_damping`. It ends when the mean stress is within `tolerance` of `p` and the
-//!    unbalanced-force ratio is below `prep_unbalanced`.
+//!    capped at `max_strain_rate` (`loose_strain_rate` while there are fewer particle-particle
+//!    contacts than particles). Particle friction is the preparation friction, damping
+//!    `prep_damping`. It ends when the mean stress is within `tolerance` of `p` and either the
+//!    unbalanced-force ratio is below `prep_unbalanced` or the porosity has changed by less than
+//!    1e-4 over the last 10 000 steps (frictionless packings keep sliding at the target).
 //! 4. **Equilibrium.** The particle friction and damping become the material's, and each wall
 //!    follows its own servo until every wall stress is within `tolerance` of `p` and the
 //!    unbalanced-force ratio is below `unbalanced`. The walls then stop, and the state is the
@@ -96,6 +98,10 @@ pub struct Params {
     pub cloud_fraction: f64,
     /// The walls' fastest strain rate, 1/s.
     pub max_strain_rate: f64,
+    /// The fastest strain rate while the cloud is loose (fewer particle-particle contacts than
+    /// particles), 1/s: the walls then meet single grains, whose impacts the servo would take
+    /// for stress.
+    pub loose_strain_rate: f64,
     /// Servo gain (PFC's alpha), 0 to 1.
     pub gain: f64,
     /// Steps allowed in all.
@@ -125,6 +131,7 @@ impl Default for Params {
             unbalanced: 1e-3,
             cloud_fraction: 0.2,
             max_strain_rate: 4.0,
+            loose_strain_rate: 20.0,
             gain: 0.5,
             max_steps: 2_000_000,
             segments: 128,
@@ -168,6 +175,7 @@ impl Params {
             ("--size-max", self.size_max),
             ("--pressure", self.pressure),
             ("--max-strain-rate", self.max_strain_rate),
+            ("--loose-strain-rate", self.loose_strain_rate),
             ("--unbalanced", self.unbalanced),
             ("--prep-unbalanced", self.prep_unbalanced),
             ("--tolerance", self.tolerance),
@@ -481,7 +489,14 @@ fn servo(
         let g = (0..3)
             .map(|k| gain(k) / half[k])
             .fold(f64::INFINITY, f64::min);
-        let rate = (g * (p.pressure - mean)).clamp(-p.max_strain_rate, p.max_strain_rate);
+        // Particle-particle contacts come first in the list.
+        let pairs = w.contacts.lower_bound(&(Partner::Wall(0), 0));
+        let cap = if 2 * pairs < w.bodies.len() {
+            p.loose_strain_rate.max(p.max_strain_rate)
+        } else {
+            p.max_strain_rate
+        };
+        let rate = (g * (p.pressure - mean)).clamp(-cap, cap);
         half.map(|h| rate * h)
     } else {
         [0, 1, 2].map(|k| {
@@ -533,55 +548,205 @@ pub fn consolidate(
     mut report: impl FnMut(&Status),
 ) -> Result<(), PackError> {
     let start = w.step;
-    let phases: [(&'static str, f64); 2] = [
-        ("compaction", p.prep_unbalanced),
-        ("equilibrium", p.unbalanced),
-    ];
-    for (k, (phase, unbalanced)) in phases.into_iter().enumerate() {
-        if k == 1 {
-            w.material.friction = p.material.friction;
-            w.material.damping = p.material.damping;
-        }
-        loop {
-            let (stresses, counts) = wall_stresses(w, p);
-            let within = stresses
-                .iter()
-                .all(|s| (s - p.pressure).abs() <= p.tolerance * p.pressure);
-            let status = Status {
-                phase,
-                step: w.step - start,
-                stresses,
-                porosity: porosity(w, p),
-                unbalanced: w.unbalanced,
-            };
-            if status.step % every == 0 {
-                report(&status);
-            }
-            let mean = (0.5 * (stresses[BOTTOM] + stresses[TOP]) + 2.0 * stresses[SIDE]) / 3.0;
-            let settled = if k == 0 {
-                (mean - p.pressure).abs() <= p.tolerance * p.pressure
-            } else {
-                within
-            };
-            if settled && w.unbalanced <= unbalanced {
-                break;
-            }
-            if status.step >= p.max_steps {
-                return Err(PackError::NotSettled {
-                    steps: status.step,
-                    phase,
-                    stresses,
-                    target: p.pressure,
-                    unbalanced: w.unbalanced,
-                });
-            }
-            let speeds = servo(w, p, &stresses, &counts, k == 0);
-            set_speeds(w, speeds);
-            w.step();
-        }
-    }
+    phase(w, p, Phase::Compaction, start, every, &mut report)?;
+    w.material.friction = p.material.friction;
+    w.material.damping = p.material.damping;
+    phase(w, p, Phase::Equilibrium, start, every, &mut report)?;
     set_speeds(w, [0.0; 3]);
     Ok(())
+}
+
+/// Step 3 alone (for [`calibrate`]); the walls are left moving.
+pub fn compact(
+    w: &mut World,
+    p: &Params,
+    every: u64,
+    mut report: impl FnMut(&Status),
+) -> Result<(), PackError> {
+    phase(w, p, Phase::Compaction, w.step, every, &mut report)
+}
+
+/// Compaction also ends at the target mean stress when the porosity has changed by less than
+/// `PLATEAU_POROSITY` over the last `(PLATEAU_SAMPLES - 1) x PLATEAU_EVERY` steps.
+const PLATEAU_EVERY: u64 = 1000;
+const PLATEAU_SAMPLES: usize = 11;
+const PLATEAU_POROSITY: f64 = 1e-4;
+
+/// The two stages of [`consolidate`].
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Compaction,
+    Equilibrium,
+}
+
+/// Runs one stage until it ends (see the module's steps 3 and 4); steps count from `start`.
+fn phase(
+    w: &mut World,
+    p: &Params,
+    which: Phase,
+    start: u64,
+    every: u64,
+    report: &mut impl FnMut(&Status),
+) -> Result<(), PackError> {
+    let (name, unbalanced) = match which {
+        Phase::Compaction => ("compaction", p.prep_unbalanced),
+        Phase::Equilibrium => ("equilibrium", p.unbalanced),
+    };
+    // Porosity every PLATEAU_EVERY steps, the last PLATEAU_SAMPLES + 1 of them.
+    let mut history: std::collections::VecDeque<f64> = std::collections::VecDeque::new();
+    loop {
+        let (stresses, counts) = wall_stresses(w, p);
+        let status = Status {
+            phase: name,
+            step: w.step - start,
+            stresses,
+            porosity: porosity(w, p),
+            unbalanced: w.unbalanced,
+        };
+        if status.step % every == 0 {
+            report(&status);
+        }
+        let near = |s: f64| (s - p.pressure).abs() <= p.tolerance * p.pressure;
+        if status.step % PLATEAU_EVERY == 0 {
+            history.push_back(status.porosity);
+            if history.len() > PLATEAU_SAMPLES {
+                history.pop_front();
+            }
+        }
+        let done = match which {
+            Phase::Compaction => {
+                // At the target mean stress, and either in balance or no longer compacting
+                // (a frictionless packing keeps sliding at the target without densifying).
+                let plateau = history.len() == PLATEAU_SAMPLES
+                    && (history[0] - status.porosity).abs() < PLATEAU_POROSITY;
+                near((0.5 * (stresses[BOTTOM] + stresses[TOP]) + 2.0 * stresses[SIDE]) / 3.0)
+                    && (w.unbalanced <= unbalanced || plateau)
+            }
+            Phase::Equilibrium => stresses.iter().all(|&s| near(s)) && w.unbalanced <= unbalanced,
+        };
+        if done {
+            return Ok(());
+        }
+        if status.step >= p.max_steps {
+            return Err(PackError::NotSettled {
+                steps: status.step,
+                phase: name,
+                stresses,
+                target: p.pressure,
+                unbalanced: w.unbalanced,
+            });
+        }
+        let speeds = servo(w, p, &stresses, &counts, which == Phase::Compaction);
+        set_speeds(w, speeds);
+        w.step();
+    }
+}
+
+/// The void-ratio limits of the templates and sizes, and the preparation friction for a relative
+/// density, found on a smaller sample (docs/pack.md, "Relative density").
+#[derive(Clone, Debug, Serialize)]
+pub struct Calibration {
+    /// The sample's container over the specimen's, in each direction.
+    pub scale: f64,
+    pub particles: usize,
+    /// Void ratio after compaction without friction (the densest) and at `loose_friction`.
+    pub e_min: f64,
+    pub e_max: f64,
+    pub loose_friction: f64,
+    /// The target, and the preparation friction chosen for it.
+    pub relative_density: f64,
+    pub prep_friction: f64,
+    /// Every compaction run: (preparation friction, void ratio), in the order run.
+    pub runs: Vec<(f64, f64)>,
+}
+
+/// The next preparation friction to try for void ratio `target`, between the frictions `lo`
+/// (its void ratio at most `target`) and `hi` (at least): linear interpolation in the square
+/// root of the friction, where the void ratio rises steeply near 0 and flattens.
+pub fn next_friction(lo: (f64, f64), hi: (f64, f64), target: f64) -> f64 {
+    let (a, b) = (lo.0.sqrt(), hi.0.sqrt());
+    let t = if hi.1 > lo.1 {
+        ((target - lo.1) / (hi.1 - lo.1)).clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
+    (a + t * (b - a)).powi(2)
+}
+
+/// Finds e_min, e_max and the preparation friction for `relative_density` on a sample of the
+/// container scaled by `scale` (the same templates, sizes and seed), by compacting it at friction
+/// 0, at `loose_friction`, and then `extra` times at [`next_friction`] within the bracket.
+/// `report` sees each run's friction and status.
+#[allow(clippy::too_many_arguments)]
+pub fn calibrate(
+    templates: &[Shape],
+    p: &Params,
+    relative_density: f64,
+    scale: f64,
+    loose_friction: f64,
+    extra: usize,
+    every: u64,
+    mut report: impl FnMut(f64, &Status),
+) -> Result<Calibration, PackError> {
+    if !(0.0..=1.0).contains(&relative_density) {
+        return Err(PackError::Bad(format!(
+            "--relative-density must be in [0, 1], got {relative_density}"
+        )));
+    }
+    if !(scale > 0.0 && scale <= 1.0) {
+        return Err(PackError::Bad(format!(
+            "--calibration-scale must be in (0, 1], got {scale}"
+        )));
+    }
+    if !(loose_friction > 0.0 && loose_friction.is_finite()) {
+        return Err(PackError::Bad(format!(
+            "--loose-friction must be a positive friction coefficient, got {loose_friction}"
+        )));
+    }
+    let sample = Params {
+        diameter: p.diameter * scale,
+        height: p.height * scale,
+        count: p
+            .count
+            .map(|n| ((n as f64 * scale.powi(3)).round() as usize).max(1)),
+        ..p.clone()
+    };
+    let mut particles = 0;
+    let mut run = |friction: f64| -> Result<f64, PackError> {
+        let q = Params {
+            prep_friction: friction,
+            ..sample.clone()
+        };
+        let mut w = cloud(templates.to_vec(), &q)?;
+        particles = w.bodies.len();
+        compact(&mut w, &q, every, |s| report(friction, s))?;
+        let n = porosity(&w, &q);
+        Ok(n / (1.0 - n))
+    };
+    let mut runs = vec![(0.0, run(0.0)?), (loose_friction, run(loose_friction)?)];
+    let (e_min, e_max) = (runs[0].1, runs[1].1);
+    let target = e_max - relative_density * (e_max - e_min);
+    let (mut lo, mut hi) = (runs[0], runs[1]);
+    for _ in 0..extra {
+        let f = next_friction(lo, hi, target);
+        let e = run(f)?;
+        runs.push((f, e));
+        if e <= target {
+            lo = (f, e);
+        } else {
+            hi = (f, e);
+        }
+    }
+    Ok(Calibration {
+        scale,
+        particles,
+        e_min,
+        e_max,
+        loose_friction,
+        relative_density,
+        prep_friction: next_friction(lo, hi, target),
+        runs,
+    })
 }
 
 /// What a specimen is: the summary `pack` reports.
@@ -694,5 +859,60 @@ pub fn summary(w: &World, p: &Params) -> Summary {
         steps: w.step,
         time: w.time,
         dt: w.dt,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn next_friction_interpolates_in_the_square_root_and_stays_in_the_bracket() {
+        // Halfway in void ratio between frictions 0 and 1: sqrt(f) = 0.5.
+        assert!((next_friction((0.0, 0.5), (1.0, 0.9), 0.7) - 0.25).abs() < 1e-12);
+        // Targets outside the bracket's void ratios go to its ends.
+        assert!((next_friction((0.04, 0.6), (0.64, 0.8), 0.5) - 0.04).abs() < 1e-12);
+        assert!((next_friction((0.04, 0.6), (0.64, 0.8), 0.95) - 0.64).abs() < 1e-12);
+        // A bracket whose void ratios came out the wrong way (noise): its middle.
+        assert!((next_friction((0.0, 0.8), (1.0, 0.7), 0.75) - 0.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn random_rotations_are_unit_and_spread_over_all_directions() {
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let mut mean = Vec3::zeros();
+        let n = 20000;
+        for _ in 0..n {
+            let q = random_rotation(&mut rng);
+            assert!((q.norm() - 1.0).abs() < 1e-12);
+            mean += q * Vec3::x();
+        }
+        // Uniform directions average to zero within a few 1 / sqrt(n).
+        assert!((mean / n as f64).norm() < 0.03, "{mean:?}");
+    }
+
+    #[test]
+    fn the_count_fills_the_container_at_the_porosity_in_equal_numbers() {
+        let cube = Shape::from_mesh(&crate::mesh::cube(0.5)).unwrap();
+        let p = Params {
+            diameter: 0.1,
+            height: 0.2,
+            size_min: 0.01,
+            size_max: 0.02,
+            ..Params::default()
+        };
+        let w = cloud(vec![cube.clone(), cube], &p).unwrap();
+        assert_eq!(w.bodies.len() % 2, 0);
+        let solid = solid_volume(&w);
+        let room = (1.0 - p.porosity) * p.area(0.05) * 0.2;
+        // Drawn until the solid fills it: over by less than two of the largest particles.
+        assert!(
+            solid >= room && solid < room + 2.0 * 0.02f64.powi(3),
+            "{solid} {room}"
+        );
+        // Nothing touches: the first step finds no contact.
+        let mut w = w;
+        w.step();
+        assert_eq!(w.contacts.len(), 0);
     }
 }

@@ -68,6 +68,30 @@ fn pack_rejects_broken_templates_and_arguments() {
         rejects(&[flag, value], &nine, 1, &[flag]);
     }
     rejects(&["--size-min", "ten"], &nine, 2, &["invalid value"]);
+    rejects(
+        &["--relative-density", "1.5"],
+        &nine,
+        1,
+        &["--relative-density must be in [0, 1]"],
+    );
+    rejects(
+        &["--relative-density", "0.8", "--prep-friction", "0.2"],
+        &nine,
+        2,
+        &["cannot be used with"],
+    );
+    rejects(
+        &["--void-ratio-limits", "0.5"],
+        &nine,
+        2,
+        &["expected E_MIN,E_MAX"],
+    );
+    rejects(
+        &["--void-ratio-limits", "0.9,0.5"],
+        &nine,
+        1,
+        &["0 < E_MIN < E_MAX"],
+    );
     // Too few steps to settle: a clear error, and no half-made specimen on standard output.
     rejects(
         &[
@@ -127,6 +151,10 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
                         "5e5",
                         "--pressure",
                         "1e3",
+                        "--loose-strain-rate",
+                        "4",
+                        "--void-ratio-limits",
+                        "0.6,1.6",
                         "--summary",
                         path.to_str().unwrap(),
                     ];
@@ -168,6 +196,9 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
     let porosity = field(s, "porosity");
     assert!(porosity > 0.3 && porosity < 0.7, "porosity {porosity}");
     assert!(field(s, "coordination") > 3.0);
+    // Dr against the limits given.
+    let dr = (1.6 - field(s, "void_ratio")) / (1.6 - 0.6);
+    assert!((field(s, "relative_density") - dr).abs() < 1e-12);
     // The specimen is a dem state: it reads back and runs on.
     let on = run_env("dem", &["--steps", "10"], &runs[0].0, &[]);
     assert!(

@@ -67,9 +67,32 @@ struct Cli {
     /// Isotropic consolidation stress, Pa
     #[arg(long, default_value_t = 100e3, allow_negative_numbers = true)]
     pressure: f64,
-    /// Particle friction while compacting (lower: denser)
-    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
-    prep_friction: f64,
+    /// Particle friction while compacting (lower: denser); default 0.1, or what
+    /// --relative-density finds
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        conflicts_with = "relative_density"
+    )]
+    prep_friction: Option<f64>,
+    /// Target relative density Dr = (e_max - e) / (e_max - e_min): finds e_min, e_max and the
+    /// preparation friction for Dr on a smaller sample first (docs/pack.md; the paper's 0.8)
+    #[arg(long, value_name = "DR", allow_negative_numbers = true)]
+    relative_density: Option<f64>,
+    /// The calibration sample's container over the specimen's, in each direction
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    calibration_scale: f64,
+    /// Preparation friction of the loosest packing (e_max)
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    loose_friction: f64,
+    /// Calibration runs after the two limits, each narrowing the friction for the target
+    #[arg(long, default_value_t = 2)]
+    calibration_runs: usize,
+    /// Known void-ratio limits E_MIN,E_MAX (of the same templates and sizes), to report the
+    /// relative density of a specimen made with --prep-friction
+    #[arg(long, value_name = "E_MIN,E_MAX", conflicts_with = "relative_density",
+          value_parser = parse_limits)]
+    void_ratio_limits: Option<(f64, f64)>,
     /// Local damping while compacting
     #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
     prep_damping: f64,
@@ -109,6 +132,9 @@ struct Cli {
     /// Fastest strain rate of the walls, 1/s
     #[arg(long, default_value_t = 4.0, allow_negative_numbers = true)]
     max_strain_rate: f64,
+    /// Fastest strain rate while the cloud is loose (fewer particle contacts than particles), 1/s
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    loose_strain_rate: f64,
     /// Servo gain (0 to 1)
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     gain: f64,
@@ -124,6 +150,19 @@ struct Cli {
     /// Steps between progress lines on standard error
     #[arg(long, default_value_t = 5000)]
     every: u64,
+}
+
+/// `E_MIN,E_MAX` as two numbers.
+fn parse_limits(s: &str) -> Result<(f64, f64), String> {
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| format!("expected E_MIN,E_MAX, got '{s}'"))?;
+    let num = |x: &str| {
+        x.trim()
+            .parse::<f64>()
+            .map_err(|_| format!("'{x}' is not a number"))
+    };
+    Ok((num(a)?, num(b)?))
 }
 
 fn main() -> ExitCode {
@@ -179,7 +218,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         count: args.count,
         porosity: args.porosity,
         pressure: args.pressure,
-        prep_friction: args.prep_friction,
+        prep_friction: args.prep_friction.unwrap_or(0.1),
         prep_damping: args.prep_damping,
         material: Material {
             density: args.density,
@@ -196,12 +235,47 @@ fn run(args: Cli) -> anyhow::Result<()> {
         unbalanced: args.unbalanced,
         cloud_fraction: args.cloud_fraction,
         max_strain_rate: args.max_strain_rate,
+        loose_strain_rate: args.loose_strain_rate,
         gain: args.gain,
         max_steps: args.max_steps,
         segments: args.segments,
     };
     let shapes = templates()?;
     let clock = std::time::Instant::now();
+    let mut params = params;
+    let mut limits = args.void_ratio_limits;
+    if let Some((lo, hi)) = limits {
+        if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo < hi) {
+            bail!("--void-ratio-limits must be 0 < E_MIN < E_MAX, got {lo},{hi}");
+        }
+    }
+    let calibration = match args.relative_density {
+        Some(dr) => {
+            let c = pack::calibrate(
+                &shapes,
+                &params,
+                dr,
+                args.calibration_scale,
+                args.loose_friction,
+                args.calibration_runs,
+                args.every,
+                |f, s| {
+                    eprintln!(
+                        "pack: calibration at friction {f:.4}, {} step {}: wall stresses {:.4e} {:.4e} {:.4e} Pa, porosity {:.4}, unbalanced {:.3e}",
+                        s.phase, s.step, s.stresses[0], s.stresses[1], s.stresses[2], s.porosity, s.unbalanced
+                    )
+                },
+            )?;
+            eprintln!(
+                "pack: calibration on {} particles: e_min {:.4} (friction 0), e_max {:.4} (friction {}), runs {:?}; preparation friction {:.4} for Dr {dr}",
+                c.particles, c.e_min, c.e_max, c.loose_friction, c.runs, c.prep_friction
+            );
+            params.prep_friction = c.prep_friction;
+            limits = Some((c.e_min, c.e_max));
+            Some(c)
+        }
+        None => None,
+    };
     let mut world = pack::cloud(shapes, &params)?;
     let (r0, b0, t0) = pack::container(&world);
     eprintln!(
@@ -226,6 +300,19 @@ fn run(args: Cli) -> anyhow::Result<()> {
     line["friction"] = serde_json::json!(params.material.friction);
     line["pressure"] = serde_json::json!(params.pressure);
     line["size_measure"] = serde_json::to_value(params.size_measure)?;
+    if let Some((e_min, e_max)) = limits {
+        line["e_min"] = serde_json::json!(e_min);
+        line["e_max"] = serde_json::json!(e_max);
+        let dr = (e_max - summary.void_ratio) / (e_max - e_min);
+        line["relative_density"] = serde_json::json!(dr);
+        eprintln!(
+            "pack: relative density {dr:.3} (e_min {e_min:.4}, e_max {e_max:.4}, e {:.4})",
+            summary.void_ratio
+        );
+    }
+    if let Some(c) = &calibration {
+        line["calibration"] = serde_json::to_value(c)?;
+    }
     eprintln!(
         "pack: {} particles, {:.4} m across, {:.4} m high: porosity {:.4}, void ratio {:.4}, coordination {:.3} ({:.3} without rattlers)",
         summary.particles, summary.diameter, summary.height, summary.porosity, summary.void_ratio,
