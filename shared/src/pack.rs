@@ -219,6 +219,11 @@ impl Params {
         if self.count == Some(0) {
             return Err(PackError::Bad("--count must be at least 1".into()));
         }
+        if self.count.is_some_and(|n| n > MAX_PARTICLES) {
+            return Err(PackError::Bad(format!(
+                "--count must be at most {MAX_PARTICLES}"
+            )));
+        }
         if self.segments < 16 {
             return Err(PackError::Bad(format!(
                 "--segments must be at least 16, got {}",
@@ -234,6 +239,9 @@ impl Params {
         0.5 * n * r * r * (2.0 * PI / n).sin()
     }
 }
+
+/// The most particles a specimen may have.
+pub const MAX_PARTICLES: usize = 1_000_000;
 
 /// A uniformly random rotation (Shoemake's method).
 fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
@@ -268,6 +276,12 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
         };
         if done {
             break;
+        }
+        if picks.len() == MAX_PARTICLES {
+            return Err(PackError::Bad(format!(
+                "more than {MAX_PARTICLES} particles would fill the container: \
+                 raise --size-min or shrink the container"
+            )));
         }
         let shape = (picks.len() % t) as u32;
         let s = &templates[shape as usize];

@@ -69,6 +69,12 @@ fn pack_rejects_broken_templates_and_arguments() {
     }
     rejects(&["--size-min", "ten"], &nine, 2, &["invalid value"]);
     rejects(
+        &["--size-min", "1e-5", "--size-max", "2e-5"],
+        &nine,
+        1,
+        &["more than 1000000 particles"],
+    );
+    rejects(
         &["--relative-density", "1.5"],
         &nine,
         1,
