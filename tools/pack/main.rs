@@ -14,6 +14,7 @@ Examples:
   polygen --faces 6..14 --seed 7 | abrade --levels 2 | pack --seed 1 > ab2.jsonl
   polygen --faces 6..14 --seed 7 | pack --diameter 0.15 --height 0.3 --summary ip.json > ip.jsonl
   pack --count 60 --diameter 0.1 --height 0.2 --size-min 0.012 --size-max 0.02 < nine.obj > small.jsonl
+  pack --relative-density 0.8 < nine.obj > dr08.jsonl     (calibrates on a half-size sample first)
   pack ... | dem --steps 1000 > later.jsonl      (the specimen is a dem state: it runs on)
 
 Every object of the OBJ stream on standard input is a template; particle i is template i mod T,
@@ -24,10 +25,12 @@ so the templates come in equal numbers. The specimen goes to standard output as 
 anisotropy, largest overlap, wall-clock time) goes to standard error, and as JSON to --summary.
 
 How (docs/pack.md): a loose cloud without contacts in the container enlarged to fit it, no
-gravity; servo-controlled walls compact it isotropically at --prep-friction until every wall is
-within --tolerance of --pressure; then the particle friction is restored and the servo holds
-until the walls are within --tolerance again and the unbalanced-force ratio is below
---unbalanced. Lengths in m, stresses in Pa.";
+gravity; the walls close in at one strain rate (servo on the mean stress) at --prep-friction
+until the mean stress is within --tolerance of --pressure; then the particle friction is
+restored and each wall holds its own servo until every wall is within --tolerance and the
+unbalanced-force ratio is below --unbalanced. --relative-density DR first finds e_min (no
+friction), e_max (--loose-friction) and the preparation friction for DR on a smaller sample
+(--calibration-scale). Lengths in m, stresses in Pa.";
 
 /// What particle size means.
 #[derive(Clone, Copy, Debug, ValueEnum)]
