@@ -634,15 +634,7 @@ mod tests {
         // (v x n) . M^-1 (v x n); its largest over many directions and all vertices.
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let rod = {
-            let c = cube(0.5);
-            let v = c
-                .vertices
-                .iter()
-                .map(|p| Vec3::new(p.x * 1.2, p.y * 0.3, p.z * 0.2));
-            let faces: Vec<Vec<u32>> = (0..c.face_count()).map(|f| c.face(f).to_vec()).collect();
-            Shape::from_mesh(&PolyMesh::from_faces("rod", v.collect(), &faces)).unwrap()
-        };
+        let rod = Shape::from_mesh(&crate::mesh::cuboid(Vec3::new(0.6, 0.15, 0.1))).unwrap();
         let cube_shape = Shape::from_mesh(&cube(0.5)).unwrap();
         for s in [&rod, &cube_shape] {
             let mut best: f64 = 0.0;

@@ -499,20 +499,11 @@ mod tests {
     #[test]
     fn a_cylinder_touches_as_its_facets_do_for_bodies_across_its_seam_and_in_small_tubes() {
         // The cylinder builds only the facets within a body's angles; the same polygon as
-        // triangle facets builds them all. Long thin bodies (a box 0.6 x 0.1 x 0.1, tilted) reach
+        // triangle facets builds them all. Long thin bodies (a box of half-widths 0.6, 0.1, 0.1, tilted) reach
         // over many facets, cross the seam at angle 0, and in the small tube hold its axis.
-        use crate::mesh::PolyMesh;
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let rod = {
-            let c = cube(0.5);
-            let v = c
-                .vertices
-                .iter()
-                .map(|p| Vec3::new(p.x * 1.2, p.y * 0.2, p.z * 0.2));
-            let faces: Vec<Vec<u32>> = (0..c.face_count()).map(|f| c.face(f).to_vec()).collect();
-            Shape::from_mesh(&PolyMesh::from_faces("rod", v.collect(), &faces)).unwrap()
-        };
+        let rod = Shape::from_mesh(&crate::mesh::cuboid(Vec3::new(0.6, 0.1, 0.1))).unwrap();
         let mut hits = 0;
         for (r_cyl, segments) in [(1.0, 32u32), (0.25, 16)] {
             let cyl = Wall::cylinder(Vec3::zeros(), Vec3::z(), r_cyl, 2.0, segments);
