@@ -58,6 +58,25 @@ pub fn require_objects(n: u64) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The mass properties of `obj` once it is known to be a solid: closed, consistently oriented,
+/// faces outwards. Errors name the object and its line.
+pub fn solid(obj: &ObjObject) -> anyhow::Result<crate::mass::MassProps> {
+    use anyhow::Context;
+    let what = || format!("object '{}' (line {})", obj.mesh.name, obj.line);
+    obj.mesh
+        .topology(Some(&obj.face_lines))
+        .with_context(what)?;
+    let props = crate::mass::MassProps::of(&obj.mesh);
+    if props.volume.is_nan() || props.volume <= 0.0 {
+        anyhow::bail!(
+            "{}: the faces point inwards (volume {:e}); faces must be counter-clockwise seen from outside",
+            what(),
+            props.volume
+        );
+    }
+    Ok(props)
+}
+
 /// Buffered standard input (movable to another thread, so reading can overlap work).
 pub fn stdin() -> io::BufReader<io::Stdin> {
     io::BufReader::with_capacity(1 << 16, io::stdin())

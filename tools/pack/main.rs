@@ -4,7 +4,6 @@ use anyhow::{bail, Context};
 use clap::{Parser, ValueEnum};
 use shared::cli;
 use shared::dem::{shape::Shape, state, world::Material};
-use shared::mass::MassProps;
 use shared::pack::{self, Params, SizeMeasure};
 use std::io::Write;
 use std::process::ExitCode;
@@ -179,13 +178,9 @@ fn templates() -> anyhow::Result<Vec<Shape>> {
     objects
         .iter()
         .map(|o| {
-            let what = || format!("object '{}' (line {})", o.mesh.name, o.line);
-            o.mesh.topology(Some(&o.face_lines)).with_context(what)?;
-            let v = MassProps::of(&o.mesh).volume;
-            if v.is_nan() || v <= 0.0 {
-                bail!("{}: the faces point inwards (volume {v:e}); faces must be counter-clockwise seen from outside", what());
-            }
-            Shape::from_mesh(&o.mesh).with_context(what)
+            cli::solid(o)?;
+            Shape::from_mesh(&o.mesh)
+                .with_context(|| format!("object '{}' (line {})", o.mesh.name, o.line))
         })
         .collect()
 }

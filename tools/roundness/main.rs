@@ -1,6 +1,6 @@
 //! roundness: volume, area and Barrett's roundness S3D of each object, and of its convex hull.
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::{Parser, ValueEnum};
 use serde::Serialize;
 use shared::cli::{self, Emit};
@@ -65,11 +65,7 @@ fn main() -> ExitCode {
 fn measure(obj: shared::obj::ObjObject) -> anyhow::Result<Row> {
     let what = || format!("object '{}' (line {})", obj.mesh.name, obj.line);
     let m = &obj.mesh;
-    m.topology(Some(&obj.face_lines)).with_context(what)?;
-    let props = MassProps::of(m);
-    if props.volume <= 0.0 {
-        bail!("{}: the faces point inwards (volume {:e}); faces must be counter-clockwise seen from outside", what(), props.volume);
-    }
+    let props = cli::solid(&obj)?;
     let hull = convex_hull(&m.vertices).with_context(what)?;
     let hp = MassProps::of(&hull.mesh);
     Ok(Row {
