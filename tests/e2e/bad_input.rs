@@ -1,27 +1,7 @@
 //! Broken input: every tool must say what is wrong (naming object and line where there is one),
 //! exit non-zero, and never write half an object.
 
-use super::{fixture, ok, run};
-
-/// Runs a tool on bad input; checks exit code and that stderr holds every `needles` entry.
-fn fails(tool: &str, args: &[&str], stdin: &[u8], code: i32, needles: &[&str]) -> Vec<u8> {
-    let out = run(tool, args, stdin);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(
-        out.status.code(),
-        Some(code),
-        "{tool} {args:?}: stderr {err}"
-    );
-    assert!(
-        err.starts_with(&format!("{tool}: ")) || code == 2,
-        "message names the tool: {err}"
-    );
-    for n in needles {
-        assert!(err.contains(n), "{tool} {args:?}: expected '{n}' in: {err}");
-    }
-    assert!(!err.contains("panicked"), "{err}");
-    out.stdout
-}
+use super::{fails, fixture, ok};
 
 /// A good cube followed by `bad` (an object text using indices that follow the cube's 8).
 fn after_a_good_cube(bad: &str) -> Vec<u8> {

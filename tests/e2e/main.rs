@@ -44,6 +44,26 @@ pub fn run_env(tool: &str, args: &[&str], stdin: &[u8], env: &[(&str, &str)]) ->
     out
 }
 
+/// Runs a tool on bad input; checks exit code and that stderr holds every `needles` entry.
+pub fn fails(tool: &str, args: &[&str], stdin: &[u8], code: i32, needles: &[&str]) -> Vec<u8> {
+    let out = run(tool, args, stdin);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "{tool} {args:?}: stderr {err}"
+    );
+    assert!(
+        err.starts_with(&format!("{tool}: ")) || code == 2,
+        "message names the tool: {err}"
+    );
+    for n in needles {
+        assert!(err.contains(n), "{tool} {args:?}: expected '{n}' in: {err}");
+    }
+    assert!(!err.contains("panicked"), "{err}");
+    out.stdout
+}
+
 /// Runs and requires success; returns standard output.
 pub fn ok(tool: &str, args: &[&str], stdin: &[u8]) -> Vec<u8> {
     let out = run(tool, args, stdin);
