@@ -185,17 +185,18 @@ impl Wall {
                 };
                 let (cx, cy) = flat(&((b.lo + b.hi) * 0.5));
                 let theta = cy.atan2(cx);
+                // `far`: the largest squared distance.
                 let (mut far, mut lo_angle, mut hi_angle) = (0.0f64, 0.0f64, 0.0f64);
                 for k in 0..8 {
                     let pick =
                         |i: usize, bit: usize| if k >> bit & 1 == 0 { b.lo[i] } else { b.hi[i] };
                     let (x, y) = flat(&Vec3::new(pick(0, 0), pick(1, 1), pick(2, 2)));
-                    far = far.max(x.hypot(y));
+                    far = far.max(x * x + y * y);
                     let delta = (cx * y - cy * x).atan2(cx * x + cy * y);
                     lo_angle = lo_angle.min(delta);
                     hi_angle = hi_angle.max(delta);
                 }
-                if far < inscribed {
+                if far < inscribed * inscribed {
                     return None;
                 }
                 let (first, last) = if hi_angle - lo_angle < std::f64::consts::FRAC_PI_2
@@ -210,20 +211,20 @@ impl Wall {
                     (0, n_seg as i64 - 1)
                 };
                 let count = ((last - first + 1) as usize).min(n_seg);
-                // Corner j of the polygon, the same bits whichever window asks for it.
-                let corner = |j: i64, h: f64| {
+                // Corner j of the polygon at the tube's foot, the same bits whichever window asks
+                // for it; each facet's far corner is the next one's near corner.
+                let corner = |j: i64| {
                     let a = j.rem_euclid(n_seg as i64) as f64 * step;
-                    point + (e1 * a.cos() + e2 * a.sin()) * *r_cyl + axis * h
+                    point + (e1 * a.cos() + e2 * a.sin()) * *r_cyl
                 };
+                let up = axis * *height;
                 let mut sum = Sum::default();
+                let mut near = corner(first);
                 for j in first..first + count as i64 {
+                    let next = corner(j + 1);
                     // Counter-clockwise seen from the axis (the particles' side).
-                    let q = [
-                        corner(j, 0.0),
-                        corner(j, *height),
-                        corner(j + 1, *height),
-                        corner(j + 1, 0.0),
-                    ];
+                    let q = [near, near + up, next + up, next];
+                    near = next;
                     let n = (q[1] - q[0]).cross(&(q[2] - q[0])).normalize();
                     // Exact quick reject: all of B on the particles' side of the facet's plane.
                     if reach_along(s, b, &-n) <= -n.dot(&q[0]) {
