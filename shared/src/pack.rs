@@ -499,7 +499,7 @@ fn servo(
     let (kn, dt) = (w.material.kn, w.dt);
     let gain = |k: usize| p.gain * areas[k] / (kn * counts[k].max(1) as f64 * dt);
     if common {
-        let mean = (0.5 * (stresses[BOTTOM] + stresses[TOP]) + 2.0 * stresses[SIDE]) / 3.0;
+        let mean = mean_stress(stresses);
         let g = (0..3)
             .map(|k| gain(k) / half[k])
             .fold(f64::INFINITY, f64::min);
@@ -549,8 +549,18 @@ fn solid_volume(w: &World) -> f64 {
 
 /// Porosity of the specimen in its container.
 pub fn porosity(w: &World, p: &Params) -> f64 {
+    porosity_of(w, p, solid_volume(w))
+}
+
+/// [`porosity`] for bodies of `solid` volume in all.
+fn porosity_of(w: &World, p: &Params, solid: f64) -> f64 {
     let (radius, bottom, top) = container(w);
-    1.0 - solid_volume(w) / (p.area(radius) * (top - bottom))
+    1.0 - solid / (p.area(radius) * (top - bottom))
+}
+
+/// The mean of the wall stresses (bottom, top, side): `(sigma_axial + 2 sigma_side) / 3`.
+fn mean_stress(stresses: &[f64; 3]) -> f64 {
+    (0.5 * (stresses[BOTTOM] + stresses[TOP]) + 2.0 * stresses[SIDE]) / 3.0
 }
 
 /// Steps 3 and 4 on a cloud from [`cloud`]: compacts it and brings it to equilibrium;
@@ -606,15 +616,17 @@ fn phase(
         Phase::Compaction => ("compaction", p.prep_unbalanced),
         Phase::Equilibrium => ("equilibrium", p.unbalanced),
     };
-    // Porosity every PLATEAU_EVERY steps, the last PLATEAU_SAMPLES + 1 of them.
+    // Porosity every PLATEAU_EVERY steps, the last PLATEAU_SAMPLES of them.
     let mut history: std::collections::VecDeque<f64> = std::collections::VecDeque::new();
+    // The bodies' volume does not change: summed once, not every step.
+    let solid = solid_volume(w);
     loop {
         let (stresses, counts) = wall_stresses(w, p);
         let status = Status {
             phase: name,
             step: w.step - start,
             stresses,
-            porosity: porosity(w, p),
+            porosity: porosity_of(w, p, solid),
             unbalanced: w.unbalanced,
         };
         if status.step % every == 0 {
@@ -633,8 +645,7 @@ fn phase(
                 // (a frictionless packing keeps sliding at the target without densifying).
                 let plateau = history.len() == PLATEAU_SAMPLES
                     && (history[0] - status.porosity).abs() < PLATEAU_POROSITY;
-                near((0.5 * (stresses[BOTTOM] + stresses[TOP]) + 2.0 * stresses[SIDE]) / 3.0)
-                    && (w.unbalanced <= unbalanced || plateau)
+                near(mean_stress(&stresses)) && (w.unbalanced <= unbalanced || plateau)
             }
             Phase::Equilibrium => stresses.iter().all(|&s| near(s)) && w.unbalanced <= unbalanced,
         };
