@@ -731,16 +731,36 @@ pub fn reach_along(sb: &Shape, b: &Posed, d: &Vec3) -> f64 {
 /// outward normal is `n`): volume, centroid, and B's area vector inside the wall; the normal from
 /// the wall to B is `n` itself.
 pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Overlap> {
+    match overlap_half_space_within(sb, b, n, d, &[]) {
+        Ok(o) => o,
+        Err(Beyond) => unreachable!("no side planes to reach beyond"),
+    }
+}
+
+/// B's part inside the wall of [`overlap_half_space_within`] reaches beyond a side plane.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Beyond;
+
+/// [`overlap_half_space`] when B's part inside the wall lies within every side plane
+/// `m . x <= e` of `sides` (then it is also B's overlap with the prism those planes cut from
+/// the half-space: a facet's); `Err(Beyond)` when a vertex of that part is outside one.
+pub fn overlap_half_space_within(
+    sb: &Shape,
+    b: &Posed,
+    n: &Vec3,
+    d: f64,
+    sides: &[(Vec3, f64)],
+) -> Result<Option<Overlap>, Beyond> {
     // Quick reject: the box above the plane.
     if box_excess(&-n, -d, &b.lo, &b.hi) <= 0.0 {
-        return None;
+        return Ok(None);
     }
     // Reference point on the plane: the cap (on the plane) adds no volume or moment.
     let mut acc = Acc {
         plane: Some((*n, d)),
         ..Default::default()
     };
-    SCRATCH.with_borrow_mut(|sc| {
+    let within = SCRATCH.with_borrow_mut(|sc| {
         let Scratch {
             clip: Clip {
                 poly, tmp, dist, ..
@@ -752,7 +772,7 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
         // B's vertices inside the wall (n . v <= d), found from the lowest one (a climb for a
         // large hull), and the faces around them, ascending: the faces that reach the wall.
         if side_b.climb_to_top(sb, b, n, -1.0) <= -d {
-            return; // every vertex above the plane
+            return true; // every vertex above the plane
         }
         side_b.reach_down_to(sb, b, n, -1.0, -d);
         faces_around(sb, &side_b.reach, faces_b);
@@ -764,18 +784,28 @@ pub fn overlap_half_space(sb: &Shape, b: &Posed, n: &Vec3, d: f64) -> Option<Ove
                     .map(|&i| b.vertex(sb, i as usize)),
             );
             if clip(poly, tmp, dist, n, d) {
+                // The clipped faces hold every vertex of the part inside the wall.
+                if (sides.iter()).any(|(m, e)| poly.iter().any(|x| m.dot(x) > *e)) {
+                    return false;
+                }
                 let _ = acc.piece(poly, true);
             }
         }
+        true
     });
-    let (volume, centroid) = acc.volume_centroid()?;
+    if !within {
+        return Err(Beyond);
+    }
+    let Some((volume, centroid)) = acc.volume_centroid() else {
+        return Ok(None);
+    };
     // B's surface inside the wall closes with the cap of area A_cap and normal n: S_B = -A_cap n.
     let cap = acc.area_b.norm();
-    Some(Overlap {
+    Ok(Some(Overlap {
         volume,
         centroid,
         area_b: -n * cap,
-    })
+    }))
 }
 
 #[cfg(test)]

@@ -370,8 +370,7 @@ impl World {
         pos: Vec3,
         rot: UnitQuaternion<f64>,
     ) -> usize {
-        let s = &self.shapes[shape as usize];
-        let rho = self.material.density;
+        let (mass, moments) = self.inertia_of(shape, scale);
         let body = Body {
             shape,
             scale,
@@ -380,8 +379,8 @@ impl World {
             vel: Vec3::zeros(),
             ang_mom: Vec3::zeros(),
             fixed: false,
-            mass: rho * s.volume * scale.powi(3),
-            moments: s.moments * (rho * scale.powi(5)),
+            mass,
+            moments,
         };
         self.bodies.push(body);
         self.bodies.len() - 1
@@ -423,15 +422,16 @@ impl World {
             *s = shape;
             moved.push((offset, turn));
         }
-        let rho = self.material.density;
-        for b in &mut self.bodies {
+        for i in 0..self.bodies.len() {
+            let (shape, scale) = (self.bodies[i].shape, self.bodies[i].scale);
+            let (mass, moments) = self.inertia_of(shape, scale);
+            let b = &mut self.bodies[i];
             let omega = b.omega();
-            let s = &self.shapes[b.shape as usize];
             let (offset, turn) = moved[b.shape as usize];
             b.pos += b.rot * (offset * b.scale);
             b.rot *= turn;
-            b.mass = rho * s.volume * b.scale.powi(3);
-            b.moments = s.moments * (rho * b.scale.powi(5));
+            b.mass = mass;
+            b.moments = moments;
             let body_omega = b.rot.inverse_transform_vector(&omega);
             b.ang_mom = b
                 .rot
@@ -482,18 +482,41 @@ impl World {
     /// a longer step than `k r^2 / I_min` would give it. Multiply by a safety factor below 1 for
     /// `dt`.
     pub fn critical_dt(&self) -> f64 {
+        (self.critical_dts().iter())
+            .map(|&(t, r)| t.min(r))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Each body's own critical steps, for translation and for rotation (see
+    /// [`World::critical_dt`], their smallest; infinite for a fixed body). They come from the
+    /// body's `mass` and `moments`, so a body whose inertia was scaled (all three moments by
+    /// one factor) gets its own.
+    pub fn critical_dts(&self) -> Vec<(f64, f64)> {
         let k = self.material.kn.max(self.material.ks);
         let rates: Vec<f64> = self.shapes.iter().map(Shape::rotation_rate).collect();
-        let rho = self.material.density;
-        self.bodies
-            .iter()
-            .filter(|b| !b.fixed)
+        (self.bodies.iter())
             .map(|b| {
-                // Lengths scale by s, moments by rho s^5: the rate by 1 / (rho s^3).
-                let rotation = rates[b.shape as usize] / (rho * b.scale.powi(3));
-                (b.mass / k).sqrt().min(1.0 / (k * rotation).sqrt())
+                if b.fixed {
+                    return (f64::INFINITY, f64::INFINITY);
+                }
+                // Lengths scale by s and the moments by c: the rate by s^2 / c.
+                let s = &self.shapes[b.shape as usize];
+                let rotation =
+                    rates[b.shape as usize] * b.scale * b.scale * s.moments.x / b.moments.x;
+                ((b.mass / k).sqrt(), 1.0 / (k * rotation).sqrt())
             })
-            .fold(f64::INFINITY, f64::min)
+            .collect()
+    }
+
+    /// The mass and principal moments of a body of `shape` at `scale`, at the material's
+    /// density.
+    pub fn inertia_of(&self, shape: u32, scale: f64) -> (f64, Vec3) {
+        let s = &self.shapes[shape as usize];
+        let rho = self.material.density;
+        (
+            rho * s.volume * scale.powi(3),
+            s.moments * (rho * scale.powi(5)),
+        )
     }
 
     /// Poses every body into `posed`, reusing its buffers.
