@@ -89,6 +89,10 @@ pub struct Params {
     pub seed: u64,
     /// Time step over the critical one.
     pub safety: f64,
+    /// Scale each body's mass and moments during the preparation so that every body's
+    /// critical step is the largest body's (see [`scale_inertia`]); the true ones come back
+    /// before the state is written.
+    pub inertia_scaling: bool,
     /// Largest relative difference of a wall's stress from `pressure` at the end.
     pub tolerance: f64,
     /// Unbalanced-force ratio that ends compaction, and the one that ends the preparation.
@@ -126,6 +130,7 @@ impl Default for Params {
             material: Material::default(),
             seed: 1,
             safety: 0.2,
+            inertia_scaling: true,
             tolerance: 0.02,
             prep_unbalanced: 1e-2,
             unbalanced: 1e-3,
@@ -348,8 +353,47 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
         2.0 * h0,
         p.segments,
     ));
+    if p.inertia_scaling {
+        scale_inertia(&mut w);
+    }
     w.dt = p.safety * w.critical_dt();
     Ok(w)
+}
+
+/// Density scaling for a quasi-static preparation: raises every free body's mass, and all its
+/// moments by one factor, until its own critical steps for translation and for rotation
+/// ([`World::critical_dts`]) are both the largest translational step of any body, the one of
+/// the heaviest. Statics does not depend on inertia, and the step is then set by the big
+/// bodies that carry the packing, not by the smallest or spikiest one. Angular velocities are
+/// kept. [`restore_inertia`] undoes it.
+pub fn scale_inertia(w: &mut World) {
+    let dts = w.critical_dts();
+    let target = (dts.iter())
+        .map(|d| d.0)
+        .filter(|t| t.is_finite())
+        .fold(0.0, f64::max);
+    for (b, (t, r)) in w.bodies.iter_mut().zip(dts) {
+        if b.fixed {
+            continue;
+        }
+        let rotation = (target / r).powi(2);
+        b.mass *= (target / t).powi(2);
+        b.moments *= rotation;
+        b.ang_mom *= rotation;
+    }
+}
+
+/// Gives every body its true mass and moments back (after [`scale_inertia`]), keeping its
+/// velocity and angular velocity, and sets the time step from them.
+pub fn restore_inertia(w: &mut World, p: &Params) {
+    for i in 0..w.bodies.len() {
+        let (mass, moments) = w.inertia_of(w.bodies[i].shape, w.bodies[i].scale);
+        let b = &mut w.bodies[i];
+        b.ang_mom *= moments.x / b.moments.x;
+        b.mass = mass;
+        b.moments = moments;
+    }
+    w.dt = p.safety * w.critical_dt();
 }
 
 /// Tries per particle before [`place`] gives up.
@@ -513,9 +557,16 @@ fn servo(
         let rate = (g * (p.pressure - mean)).clamp(-cap, cap);
         half.map(|h| rate * h)
     } else {
+        // A wall within half the tolerance rests: a servo that chases every fluctuation
+        // keeps shaking the packing it should let settle.
         [0, 1, 2].map(|k| {
             let cap = p.max_strain_rate * half[k];
-            (gain(k) * (p.pressure - stresses[k])).clamp(-cap, cap)
+            let error = p.pressure - stresses[k];
+            if error.abs() <= 0.5 * p.tolerance * p.pressure {
+                0.0
+            } else {
+                (gain(k) * error).clamp(-cap, cap)
+            }
         })
     }
 }
@@ -577,6 +628,7 @@ pub fn consolidate(
     w.material.damping = p.material.damping;
     phase(w, p, Phase::Equilibrium, start, every, &mut report)?;
     set_speeds(w, [0.0; 3]);
+    restore_inertia(w, p);
     Ok(())
 }
 
@@ -939,5 +991,54 @@ mod tests {
         let mut w = w;
         w.step();
         assert_eq!(w.contacts.len(), 0);
+    }
+
+    #[test]
+    fn inertia_scaling_gives_every_body_the_largest_step_and_restoring_gives_the_true_inertia() {
+        // Spiky and flat templates, sizes 1:4: the step was set by the smallest, spikiest one.
+        let shapes: Vec<Shape> = [6, 9, 14]
+            .map(|faces| {
+                let q = crate::polygen::Params {
+                    faces,
+                    ..Default::default()
+                };
+                let m = crate::polygen::generate(&q, 7, 0).unwrap().mesh;
+                Shape::from_mesh(&m).unwrap()
+            })
+            .into();
+        let p = Params {
+            diameter: 0.2,
+            height: 0.4,
+            count: Some(30),
+            inertia_scaling: false,
+            ..Params::default()
+        };
+        let mut w = cloud(shapes, &p).unwrap();
+        let true_dt = w.critical_dt();
+        let largest = (w.critical_dts().iter()).map(|d| d.0).fold(0.0, f64::max);
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        for b in w.bodies.iter_mut() {
+            b.vel = Vec3::new(rng.random(), rng.random(), rng.random());
+            b.ang_mom = Vec3::new(rng.random(), rng.random(), rng.random()) * b.moments.x;
+        }
+        let before: Vec<(Vec3, Vec3)> = w.bodies.iter().map(|b| (b.vel, b.omega())).collect();
+        scale_inertia(&mut w);
+        for (t, r) in w.critical_dts() {
+            assert!((t - largest).abs() < 1e-12 * largest, "{t} {largest}");
+            assert!((r - largest).abs() < 1e-12 * largest, "{r} {largest}");
+        }
+        assert!(largest > 4.0 * true_dt, "{largest} against {true_dt}");
+        for (b, (v, omega)) in w.bodies.iter().zip(&before) {
+            assert_eq!(b.vel, *v);
+            assert!((b.omega() - omega).norm() < 1e-12 * omega.norm());
+        }
+        restore_inertia(&mut w, &p);
+        assert_eq!(w.dt, p.safety * true_dt);
+        for (b, (v, omega)) in w.bodies.iter().zip(&before) {
+            let (mass, moments) = w.inertia_of(b.shape, b.scale);
+            assert_eq!((b.mass, b.moments), (mass, moments));
+            assert_eq!(b.vel, *v);
+            assert!((b.omega() - omega).norm() < 1e-12 * omega.norm());
+        }
     }
 }

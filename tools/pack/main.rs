@@ -119,6 +119,10 @@ struct Cli {
     /// Time step over the critical one
     #[arg(long, default_value_t = 0.2, allow_negative_numbers = true)]
     safety: f64,
+    /// Keep every particle's true mass and moments while preparing (by default they are scaled
+    /// so that every particle's critical time step is the largest particle's; docs/pack.md)
+    #[arg(long)]
+    no_inertia_scaling: bool,
     /// Largest relative difference of a wall stress from --pressure at the end
     #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
     tolerance: f64,
@@ -228,6 +232,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         },
         seed: args.seed,
         safety: args.safety,
+        inertia_scaling: !args.no_inertia_scaling,
         tolerance: args.tolerance,
         prep_unbalanced: args.prep_unbalanced,
         unbalanced: args.unbalanced,
@@ -275,6 +280,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         None => None,
     };
     let mut world = pack::cloud(shapes, &params)?;
+    let prep_dt = world.dt;
     let (r0, b0, t0) = pack::container(&world);
     eprintln!(
         "pack: {} particles of {} templates in a loose cloud {:.4} m across and {:.4} m high; time step {:.4e} s",
@@ -294,6 +300,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let summary = pack::summary(&world, &params);
     let mut line = serde_json::to_value(&summary)?;
     line["wall_clock"] = serde_json::json!(secs);
+    line["prep_dt"] = serde_json::json!(prep_dt);
     line["prep_friction"] = serde_json::json!(params.prep_friction);
     line["friction"] = serde_json::json!(params.material.friction);
     line["pressure"] = serde_json::json!(params.pressure);
