@@ -13,7 +13,8 @@
 //!
 //! A cylinder is the prism of `segments` flat facets inscribed in the circle (the sagitta,
 //! `radius (1 - cos(pi / segments))`, is the price: 0.03 % of the radius for 128 segments); only
-//! the facets within reach of a body are built.
+//! the facets within reach of a body are built. Its contact normal is the radius through the
+//! overlap's centroid, so that it makes no moment about the axis.
 
 use super::overlap::{
     overlap_half_space, overlap_half_space_within, overlap_parts, reach_along, Beyond, Overlap,
