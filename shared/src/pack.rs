@@ -849,6 +849,10 @@ pub struct Summary {
     /// Deviatoric anisotropy of the particle-particle contact normals: (15/2) sqrt(3/2 d:d),
     /// d the deviator of the fabric tensor <n n> (a_c of the paper's Fig. 17; 0 isotropic).
     pub anisotropy: f64,
+    /// The root-mean-square `anisotropy` of as many independent, isotropic random normals as
+    /// there are particle-particle contacts, `7.5 / sqrt(C)`: sampling alone gives that much,
+    /// so a smaller `anisotropy` is zero within sampling. `None` without contacts.
+    pub anisotropy_noise: Option<f64>,
     /// Largest contact depth over the size (equivalent-sphere diameter) of the smaller body.
     pub max_overlap: f64,
     /// Particles reaching out of the container by more than 1 % of their size.
@@ -857,6 +861,17 @@ pub struct Summary {
     pub steps: u64,
     pub time: f64,
     pub dt: f64,
+}
+
+/// The deviatoric anisotropy a_c = (15/2) sqrt(3/2 d:d) of `count` unit normals whose `n n^T`
+/// sum to `fabric` (d the deviator of their mean); 0 for none.
+pub fn anisotropy(fabric: &nalgebra::Matrix3<f64>, count: usize) -> f64 {
+    if count == 0 {
+        return 0.0;
+    }
+    let f = fabric / count as f64;
+    let d = f - nalgebra::Matrix3::identity() * (f.trace() / 3.0);
+    7.5 * (1.5 * d.component_mul(&d).sum()).sqrt()
 }
 
 /// The summary of specimen `w` made with `p`.
@@ -882,13 +897,7 @@ pub fn summary(w: &World, p: &Params) -> Summary {
         };
         max_overlap = max_overlap.max(c.depth / smaller);
     }
-    let anisotropy = if pairs > 0 {
-        let f = fabric / pairs as f64;
-        let d = f - nalgebra::Matrix3::identity() * (f.trace() / 3.0);
-        7.5 * (1.5 * d.component_mul(&d).sum()).sqrt()
-    } else {
-        0.0
-    };
+    let anisotropy = anisotropy(&fabric, pairs);
     let (n0, n1) = (
         ends.iter().filter(|&&e| e == 0).count(),
         ends.iter().filter(|&&e| e == 1).count(),
@@ -930,6 +939,7 @@ pub fn summary(w: &World, p: &Params) -> Summary {
             .fold(0.0, f64::max),
         unbalanced: w.unbalanced,
         anisotropy,
+        anisotropy_noise: (pairs > 0).then(|| 7.5 / (pairs as f64).sqrt()),
         max_overlap,
         outside,
         contacts: w.contacts.len(),
@@ -1040,5 +1050,35 @@ mod tests {
             assert_eq!(b.vel, *v);
             assert!((b.omega() - omega).norm() < 1e-12 * omega.norm());
         }
+    }
+
+    #[test]
+    fn anisotropy_is_7_5_for_aligned_normals_and_7_5_over_root_n_for_random_ones() {
+        let z = Vec3::z();
+        assert!((anisotropy(&(z * z.transpose() * 10.0), 10) - 7.5).abs() < 1e-12);
+        // Along the three axes alike: isotropic.
+        let axes = Vec3::x() * Vec3::x().transpose()
+            + Vec3::y() * Vec3::y().transpose()
+            + z * z.transpose();
+        assert!(anisotropy(&axes, 3) < 1e-12);
+        // Isotropic random normals: the root mean square is Summary::anisotropy_noise's.
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let n = 500;
+        let trials = 400;
+        let mut sum2 = 0.0;
+        for _ in 0..trials {
+            let mut fabric = nalgebra::Matrix3::zeros();
+            for _ in 0..n {
+                let v = random_rotation(&mut rng) * z;
+                fabric += v * v.transpose();
+            }
+            sum2 += anisotropy(&fabric, n).powi(2);
+        }
+        let rms = (sum2 / trials as f64).sqrt();
+        let expected = 7.5 / (n as f64).sqrt();
+        assert!(
+            (rms / expected - 1.0).abs() < 0.05,
+            "{rms} against {expected}"
+        );
     }
 }

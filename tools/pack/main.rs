@@ -324,9 +324,10 @@ fn run(args: Cli) -> anyhow::Result<()> {
         summary.coordination, summary.mechanical_coordination
     );
     eprintln!(
-        "pack: wall stresses {:.4e} {:.4e} {:.4e} Pa (largest error {:.2} %), unbalanced {:.3e}, anisotropy {:.4}, largest overlap {:.3e} of a size, {} outside; {} steps in {:.1} s",
+        "pack: wall stresses {:.4e} {:.4e} {:.4e} Pa (largest error {:.2} %), unbalanced {:.3e}, anisotropy {:.4} (sampling alone: {:.4}), largest overlap {:.3e} of a size, {} outside; {} steps in {:.1} s",
         summary.wall_stresses[0], summary.wall_stresses[1], summary.wall_stresses[2],
-        100.0 * summary.stress_error, summary.unbalanced, summary.anisotropy, summary.max_overlap,
+        100.0 * summary.stress_error, summary.unbalanced, summary.anisotropy,
+        summary.anisotropy_noise.unwrap_or(f64::NAN), summary.max_overlap,
         summary.outside, summary.steps, secs
     );
     if let Some(path) = &args.summary {
