@@ -1,4 +1,4 @@
-# Every figure from scratch: `make figures` (or `make fig1` ... `make fig7`); `make test`;
+# Every figure from scratch: `make figures` (or `make fig1` ... `make fig8`); `make test`;
 # `make bench`. Outputs go to out/ (not tracked).
 
 OUT := out
@@ -7,9 +7,9 @@ export PATH := $(BIN):$(PATH)
 SHELL := /bin/bash
 .SHELLFLAGS := -o pipefail -ec
 
-.PHONY: all figures build test bench clean fig1 fig2 fig4 fig5 fig6 fig7
+.PHONY: all figures build test bench clean fig1 fig2 fig4 fig5 fig6 fig7 fig8
 all: figures
-figures: fig1 fig2 fig4 fig5 fig6 fig7
+figures: fig1 fig2 fig4 fig5 fig6 fig7 fig8
 
 build:
 	cargo build --release --locked --bins
@@ -18,6 +18,7 @@ $(OUT):
 	mkdir -p $(OUT)
 
 include pipelines/geometry.mk
+include pipelines/specimen.mk
 include pipelines/bench.mk
 
 test:

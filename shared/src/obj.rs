@@ -253,10 +253,12 @@ impl<R: BufRead> Iterator for ObjReader<R> {
     }
 }
 
-/// Writes an OBJ stream; keeps the global vertex count so that face indices are global.
+/// Writes an OBJ stream; keeps the global vertex count so that face indices are global (or,
+/// from [`ObjWriter::relative`], writes them relative to each object's own vertices).
 pub struct ObjWriter<W: Write> {
     out: W,
     base: u64,
+    relative: bool,
     float: ryu::Buffer,
     int: itoa_like::Buffer,
 }
@@ -266,8 +268,18 @@ impl<W: Write> ObjWriter<W> {
         ObjWriter {
             out,
             base: 0,
+            relative: false,
             float: ryu::Buffer::new(),
             int: itoa_like::Buffer::default(),
+        }
+    }
+
+    /// A writer whose face indices are negative, counted back from each object's last vertex
+    /// (OBJ's relative indices): its streams still read right when concatenated.
+    pub fn relative(out: W) -> Self {
+        ObjWriter {
+            relative: true,
+            ..ObjWriter::new(out)
         }
     }
 
@@ -305,7 +317,13 @@ impl<W: Write> ObjWriter<W> {
             line.push(b'f');
             for &i in f {
                 line.push(b' ');
-                line.extend_from_slice(self.int.format(self.base + i as u64 + 1));
+                if self.relative {
+                    line.push(b'-');
+                    let back = mesh.vertices.len() as u64 - i as u64;
+                    line.extend_from_slice(self.int.format(back));
+                } else {
+                    line.extend_from_slice(self.int.format(self.base + i as u64 + 1));
+                }
             }
             line.push(b'\n');
             self.out.write_all(&line)?;
@@ -425,6 +443,31 @@ mod tests {
         let o = &read_all(text.as_bytes()).unwrap()[0];
         assert_eq!(o.mesh.face(0), &[0, 1, 2]);
         assert_eq!(o.mesh.face(1), &[0, 2, 1]);
+    }
+
+    #[test]
+    fn relative_streams_concatenate() {
+        let tri = |name: &str, z: f64| {
+            let v = vec![
+                Vec3::new(0.0, 0.0, z),
+                Vec3::new(1.0, 0.0, z),
+                Vec3::new(0.0, 1.0, z),
+            ];
+            PolyMesh::from_faces(name, v, &[vec![0, 1, 2], vec![0, 2, 1]])
+        };
+        let write = |m: &PolyMesh| {
+            let mut w = ObjWriter::relative(Vec::new());
+            w.object(m, &[]).unwrap();
+            w.into_inner().unwrap()
+        };
+        let (a, b) = (tri("a", 0.0), tri("b", 1.0));
+        let mut both = write(&a);
+        both.extend(write(&b));
+        let back = read_all(&both[..]).unwrap();
+        for (o, m) in back.iter().zip([&a, &b]) {
+            assert_eq!(o.mesh.vertices, m.vertices);
+            assert_eq!((o.mesh.face(0), o.mesh.face(1)), (m.face(0), m.face(1)));
+        }
     }
 
     fn error_of(text: &str) -> String {

@@ -360,3 +360,70 @@ fn peer_scenes_take_shared_templates() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--import-peer"));
 }
+
+#[test]
+fn obj_output_holds_the_bodies_where_they_are_and_renders() {
+    let scene = repo_file("examples/drop.jsonl");
+    let path = std::env::temp_dir().join(format!("dem-obj-{}.obj", std::process::id()));
+    let state = ok(
+        "dem",
+        &[
+            "--steps",
+            "2000",
+            "--obj",
+            path.to_str().unwrap(),
+            "--obj-group",
+            "drop",
+        ],
+        &scene,
+    );
+    let obj = std::fs::read(&path).unwrap();
+    let _ = std::fs::remove_file(&path);
+    let objects = shared::obj::read_all(&obj[..]).unwrap();
+    let bodies: Vec<serde_json::Value> = String::from_utf8(state)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["type"] == "body")
+        .collect();
+    assert_eq!(objects.len(), bodies.len());
+    for (o, b) in objects.iter().zip(&bodies) {
+        assert_eq!(o.mesh.name, format!("drop/{}", b["id"]));
+        assert!(o.mesh.attrs.get("color").is_some());
+        // Each object is its body's hull where the state has it: same centroid, and turned
+        // as the body is, its inertia diagonal in the body's axes.
+        let m = shared::mass::MassProps::of(&o.mesh);
+        for k in 0..3 {
+            let x = b["pos"][k].as_f64().unwrap();
+            assert!(
+                (m.centroid[k] - x).abs() < 1e-9,
+                "centroid {:?} against {}",
+                m.centroid,
+                b["pos"]
+            );
+        }
+        let q = |k: usize| b["rot"][k].as_f64().unwrap();
+        let (w, x, y, z) = (q(0), q(1), q(2), q(3));
+        let r = shared::math::Mat3::new(
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        );
+        let body = r.transpose() * m.inertia * r;
+        let off = body[(0, 1)].abs() + body[(0, 2)].abs() + body[(1, 2)].abs();
+        assert!(off < 1e-6 * body.trace(), "{body}");
+    }
+    let png = ok("render", &[], &obj);
+    assert!(png.starts_with(b"\x89PNG"));
+    fails(
+        &["--steps", "1", "--obj", "x.obj", "--obj-group", "a b"],
+        &scene,
+        &["--obj-group must be a word"],
+    );
+}

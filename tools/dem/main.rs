@@ -65,6 +65,15 @@ struct Cli {
     /// Replace the scene's local damping coefficient (0 to 1)
     #[arg(long, allow_negative_numbers = true)]
     damping: Option<f64>,
+    /// Write the bodies as they are at the end to FILE as an OBJ stream, one object per body
+    /// (named GROUP/ID, coloured by shape), for `render`: e.g. `dem --steps 0 --obj spec.obj
+    /// < spec.jsonl && render < spec.obj > spec.png`. Face indices are relative (negative), so
+    /// such files concatenate into one stream
+    #[arg(long, value_name = "FILE")]
+    obj: Option<std::path::PathBuf>,
+    /// The group (`render` cell) of the --obj objects
+    #[arg(long, default_value = "specimen")]
+    obj_group: String,
     /// Write a time series (energy audit, contact count, wall forces) as JSON lines to FILE
     #[arg(long)]
     series: Option<std::path::PathBuf>,
@@ -254,6 +263,16 @@ fn run(args: Cli) -> anyhow::Result<()> {
         )),
         None => None,
     };
+    if args.obj_group.is_empty()
+        || args
+            .obj_group
+            .contains(|c: char| c.is_whitespace() || c == '/')
+    {
+        bail!(
+            "--obj-group must be a word without spaces or '/', got '{}'",
+            args.obj_group
+        );
+    }
     if args.vtk_every == 0 {
         bail!("--vtk-every must be at least 1");
     }
@@ -346,10 +365,33 @@ fn run(args: Cli) -> anyhow::Result<()> {
             );
         }
     }
+    if let Some(path) = &args.obj {
+        std::fs::write(path, bodies_obj(&world, &args.obj_group)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     let mut out = cli::stdout();
     state::write_world(&world, &mut out)?;
     out.flush()?;
     Ok(())
+}
+
+/// Colours of the shapes in `--obj`, in turn.
+const PALETTE: [&str; 9] = [
+    "c8553d", "588b8b", "f2c14e", "5d4e8c", "8cb369", "e07a5f", "3d5a80", "b5838d", "6d9dc5",
+];
+
+/// The bodies as an OBJ stream for `render`: object GROUP/ID per body, coloured by its shape.
+fn bodies_obj(world: &shared::dem::world::World, group: &str) -> anyhow::Result<Vec<u8>> {
+    let mut out = shared::obj::ObjWriter::relative(Vec::new());
+    for (id, b) in world.bodies.iter().enumerate() {
+        let shape = &world.shapes[b.shape as usize];
+        let mut mesh = shape.posed_mesh(&b.pos, &b.rot, b.scale);
+        mesh.name = format!("{group}/{id}");
+        let colour = PALETTE[b.shape as usize % PALETTE.len()];
+        mesh.attrs.0.push(("color".into(), colour.into()));
+        out.object(&mesh, &[])?;
+    }
+    Ok(out.into_inner()?)
 }
 
 /// The process's peak resident set (Linux `VmHWM`), KiB; `None` where it cannot be read.

@@ -251,13 +251,7 @@ impl Shape {
         &self,
         make: impl FnOnce(&PolyMesh) -> Result<PolyMesh, String>,
     ) -> Result<Remade, String> {
-        let mesh = PolyMesh {
-            name: self.name.clone(),
-            vertices: self.vertices.clone(),
-            face_start: self.face_start.clone(),
-            face_verts: self.face_verts.clone(),
-            ..Default::default()
-        };
+        let mesh = self.posed_mesh(&Vec3::zeros(), &UnitQuaternion::identity(), 1.0);
         let mut made = make(&mesh).map_err(|e| format!("shape '{}': {e}", self.name))?;
         made.name = self.name.clone();
         let mut out = Shape::from_mesh(&made).map_err(|e| e.to_string())?;
@@ -265,6 +259,20 @@ impl Shape {
         out.centroid_in_mesh = self.centroid_in_mesh + self.frame_in_mesh * offset;
         out.frame_in_mesh = self.frame_in_mesh * turn;
         Ok((out, offset, turn))
+    }
+
+    /// The shape as a mesh named after it, scaled by `scale`, rotated by `rot` and moved to
+    /// `pos` (the shape's own frame for the identity pose).
+    pub fn posed_mesh(&self, pos: &Vec3, rot: &UnitQuaternion<f64>, scale: f64) -> PolyMesh {
+        PolyMesh {
+            name: self.name.clone(),
+            vertices: (self.vertices.iter())
+                .map(|v| pos + rot * (v * scale))
+                .collect(),
+            face_start: self.face_start.clone(),
+            face_verts: self.face_verts.clone(),
+            ..Default::default()
+        }
     }
 
     /// The largest top eigenvalue over the vertices `v` of `M^-1/2 (|v|^2 - v v^T) M^-1/2`, `M`
