@@ -615,12 +615,13 @@ fn mean_stress(stresses: &[f64; 3]) -> f64 {
 }
 
 /// Steps 3 and 4 on a cloud from [`cloud`]: compacts it and brings it to equilibrium;
-/// `report` sees the status every `every` steps. The walls are at rest at the end.
+/// `report` sees the status and the world every `every` steps. The walls are at rest at the
+/// end.
 pub fn consolidate(
     w: &mut World,
     p: &Params,
     every: u64,
-    mut report: impl FnMut(&Status),
+    mut report: impl FnMut(&Status, &World),
 ) -> Result<(), PackError> {
     let start = w.step;
     phase(w, p, Phase::Compaction, start, every, &mut report)?;
@@ -637,7 +638,7 @@ pub fn compact(
     w: &mut World,
     p: &Params,
     every: u64,
-    mut report: impl FnMut(&Status),
+    mut report: impl FnMut(&Status, &World),
 ) -> Result<(), PackError> {
     phase(w, p, Phase::Compaction, w.step, every, &mut report)
 }
@@ -662,7 +663,7 @@ fn phase(
     which: Phase,
     start: u64,
     every: u64,
-    report: &mut impl FnMut(&Status),
+    report: &mut impl FnMut(&Status, &World),
 ) -> Result<(), PackError> {
     let (name, unbalanced) = match which {
         Phase::Compaction => ("compaction", p.prep_unbalanced),
@@ -682,7 +683,7 @@ fn phase(
             unbalanced: w.unbalanced,
         };
         if status.step % every == 0 {
-            report(&status);
+            report(&status, w);
         }
         let near = |s: f64| (s - p.pressure).abs() <= p.tolerance * p.pressure;
         if status.step % PLATEAU_EVERY == 0 {
@@ -796,7 +797,7 @@ pub fn calibrate(
         };
         let mut w = cloud(templates.to_vec(), &q)?;
         particles = w.bodies.len();
-        compact(&mut w, &q, every, |s| report(friction, s))?;
+        compact(&mut w, &q, every, |s, _| report(friction, s))?;
         let n = porosity(&w, &q);
         Ok(n / (1.0 - n))
     };

@@ -154,7 +154,15 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
                         "0.6,1.6",
                         "--summary",
                         path.to_str().unwrap(),
+                        "--every",
+                        "20000",
                     ];
+                    // The run on one thread also writes VTK snapshots.
+                    let vtk = dir.join("vtk");
+                    let mut args = args.to_vec();
+                    if threads == "1" {
+                        args.extend(["--vtk", vtk.to_str().unwrap()]);
+                    }
                     let out = run_env("pack", &args, nine, &[("RAYON_NUM_THREADS", threads)]);
                     assert!(
                         out.status.success(),
@@ -168,6 +176,10 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
             .into();
         handles.into_iter().map(|h| h.join().unwrap()).collect()
     });
+    // A snapshot with every progress line (one each 20 000 steps from step 0) and one of the
+    // specimen.
+    let pvd = std::fs::read_to_string(dir.join("vtk").join("particles.pvd")).unwrap();
+    let snapshots = pvd.matches("<DataSet").count();
     std::fs::remove_dir_all(&dir).ok();
     assert!(
         runs[0].0 == runs[1].0,
@@ -175,6 +187,13 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
     );
     let s = &runs[0].1;
     assert_eq!(field(s, "particles"), 36.0);
+    let expected = field(s, "steps") as usize / 20000 + 2;
+    assert_eq!(
+        snapshots,
+        expected,
+        "{snapshots} VTK snapshots in {} steps",
+        field(s, "steps")
+    );
     // The final state: every wall within 2 % of the target, equilibrium, nothing out
     // of the container, overlaps below 1 % of a size.
     let stresses = s["wall_stresses"].as_array().unwrap();

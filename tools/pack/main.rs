@@ -153,6 +153,10 @@ struct Cli {
     /// Write the summary as one JSON line to FILE
     #[arg(long)]
     summary: Option<std::path::PathBuf>,
+    /// Write VTK snapshots of the preparation (particles, contacts, walls as .vtu, and .pvd
+    /// collections for ParaView) into DIR: one with every progress line, and the specimen
+    #[arg(long, value_name = "DIR")]
+    vtk: Option<std::path::PathBuf>,
     /// Steps between progress lines on standard error
     #[arg(long, default_value_t = 5000)]
     every: u64,
@@ -290,12 +294,29 @@ fn run(args: Cli) -> anyhow::Result<()> {
         t0 - b0,
         world.dt
     );
-    pack::consolidate(&mut world, &params, args.every, |s| {
+    let mut snapshots = match &args.vtk {
+        Some(dir) => Some(
+            shared::dem::vtk::Snapshots::new(dir)
+                .with_context(|| format!("creating {}", dir.display()))?,
+        ),
+        None => None,
+    };
+    let mut vtk_error = None;
+    pack::consolidate(&mut world, &params, args.every, |s, w| {
         eprintln!(
             "pack: {} step {}: wall stresses {:.4e} {:.4e} {:.4e} Pa, porosity {:.4}, unbalanced {:.3e}",
             s.phase, s.step, s.stresses[0], s.stresses[1], s.stresses[2], s.porosity, s.unbalanced
         );
+        if let (Some(v), None) = (snapshots.as_mut(), &vtk_error) {
+            vtk_error = v.write(w).err();
+        }
     })?;
+    if let Some(e) = vtk_error {
+        return Err(e).context("writing a VTK snapshot");
+    }
+    if let Some(v) = snapshots.as_mut() {
+        v.write(&world).context("writing a VTK snapshot")?;
+    }
     let secs = clock.elapsed().as_secs_f64();
     let summary = pack::summary(&world, &params);
     let mut line = serde_json::to_value(&summary)?;
