@@ -28,5 +28,5 @@ $(OUT)/specimen-%.obj: $(OUT)/specimen-%.jsonl
 
 fig8: $(foreach g,$(GROUPS),$(OUT)/specimen-$(g).obj)
 	cat $(foreach g,$(GROUPS),$(OUT)/specimen-$(g).json) > $(OUT)/fig8.jsonl
-	cat $^ | render --cols 4 --same-scale --size 1600x900 --no-edges \
+	cat $^ | render --cols 4 --same-scale --size 1200x620 --no-edges \
 	  --title "Fig. 8: the specimens of the four groups, consolidated isotropically by pack" > $(OUT)/fig8.png
