@@ -19,9 +19,11 @@
 //!    unbalanced-force ratio is below `prep_unbalanced` or the porosity has changed by less than
 //!    1e-4 over the last 10 000 steps (frictionless packings keep sliding at the target).
 //! 4. **Equilibrium.** The particle friction and damping become the material's, and each wall
-//!    follows its own servo until every wall stress is within `tolerance` of `p` and the
-//!    unbalanced-force ratio is below `unbalanced`. The walls then stop, and the state is the
-//!    specimen.
+//!    follows its own servo (resting while within half the tolerance) until every wall stress
+//!    is within `tolerance` of `p` and the unbalanced-force ratio is below `unbalanced`. The
+//!    walls then stop, the true inertia comes back, and the state is the specimen.
+//!
+//! Steps 3 and 4 run with density scaling ([`scale_inertia`]) unless `inertia_scaling` is off.
 
 use crate::dem::gjk;
 use crate::dem::shape::Shape;
