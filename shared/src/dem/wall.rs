@@ -239,15 +239,15 @@ impl Wall {
                     }
                     // Most often B's part behind the plane lies within the facet: that part
                     // is the overlap, without clipping B by the facet's prism.
-                    let sides = [0, 1, 2, 3].map(|i| {
-                        let m = (q[(i + 1) % 4] - q[i]).cross(&n).normalize();
-                        (m, m.dot(&q[i]))
-                    });
+                    let sides = side_planes(&q, &n);
                     match overlap_half_space_within(s, b, &n, n.dot(&q[0]), &sides) {
                         Ok(Some(o)) => sum.add(o.volume, &o.centroid, &-o.area_b),
                         Ok(None) => {}
                         Err(Beyond) => {
-                            if let Some((v, c, cap)) = facet_overlap(&q, &n, 2.0 * radius, s, b) {
+                            let depth = 2.0 * radius;
+                            if let Some((v, c, cap)) =
+                                facet_overlap_with(&q, &n, &sides, depth, s, b)
+                            {
                                 sum.add(v, &c, &cap);
                             }
                         }
@@ -409,14 +409,34 @@ fn facet_overlap<const K: usize>(
     sb: &Shape,
     b: &Posed,
 ) -> Option<(f64, Vec3, Vec3)> {
+    facet_overlap_with(q, n, &side_planes(q, n), depth, sb, b)
+}
+
+/// The side planes `m . x <= e` of the prism behind the convex facet `q` (normal `n`), one per
+/// edge, outward.
+fn side_planes<const K: usize>(q: &[Vec3; K], n: &Vec3) -> [(Vec3, f64); K] {
+    std::array::from_fn(|i| {
+        let m = (q[(i + 1) % K] - q[i]).cross(n).normalize();
+        (m, m.dot(&q[i]))
+    })
+}
+
+/// [`facet_overlap`] with the facet's [`side_planes`] already at hand.
+fn facet_overlap_with<const K: usize>(
+    q: &[Vec3; K],
+    n: &Vec3,
+    sides: &[(Vec3, f64); K],
+    depth: f64,
+    sb: &Shape,
+    b: &Posed,
+) -> Option<(f64, Vec3, Vec3)> {
     let mut vertices: Vec<Vec3> = q.to_vec();
     vertices.extend(q.iter().map(|p| p - n * depth));
     let mut normals = vec![*n, -n];
     let mut offsets = vec![n.dot(&q[0]), -n.dot(&vertices[K])];
-    for i in 0..K {
-        let m = (q[(i + 1) % K] - q[i]).cross(n).normalize();
-        normals.push(m);
-        offsets.push(m.dot(&q[i]));
+    for (m, e) in sides {
+        normals.push(*m);
+        offsets.push(*e);
     }
     let (lo, hi) = crate::math::bounding_box(&vertices)?;
     let posed = Posed {
