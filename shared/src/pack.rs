@@ -43,8 +43,21 @@ use thiserror::Error;
 pub const BOTTOM: usize = 0;
 /// The top platen's index (a plane, normal -z).
 pub const TOP: usize = 1;
-/// The cylinder wall's index.
+/// The cylinder wall's index; in a box, the first of the four side planes (normals +x, -x,
+/// +y, -y).
 pub const SIDE: usize = 2;
+
+/// The container's shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Container {
+    /// A cylinder about the z axis (the prism of `segments` facets) between two platens: walls
+    /// bottom, top, cylinder.
+    Cylinder,
+    /// A box of four side planes between two platens: walls bottom, top, x-min, x-max, y-min,
+    /// y-max.
+    Box,
+}
 
 /// What a particle's size is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -69,8 +82,13 @@ impl SizeMeasure {
 /// How to make a specimen.
 #[derive(Clone, Debug, Serialize)]
 pub struct Params {
-    /// Container diameter and height, m.
+    pub container: Container,
+    /// The cylinder's diameter, m.
     pub diameter: f64,
+    /// The box's sides along x and y, m.
+    pub width: f64,
+    pub depth: f64,
+    /// The container's height, m.
     pub height: f64,
     /// Particle sizes, uniform between these, m.
     pub size_min: f64,
@@ -119,7 +137,10 @@ pub struct Params {
 impl Default for Params {
     fn default() -> Self {
         Params {
+            container: Container::Cylinder,
             diameter: 0.3,
+            width: 0.3,
+            depth: 0.3,
             height: 0.6,
             size_min: 0.010,
             size_max: 0.040,
@@ -167,7 +188,7 @@ pub enum PackError {
     NotSettled {
         steps: u64,
         phase: &'static str,
-        stresses: [f64; 3],
+        stresses: Vec<f64>,
         target: f64,
         unbalanced: f64,
     },
@@ -175,8 +196,11 @@ pub enum PackError {
 
 impl Params {
     fn check(&self) -> Result<(), PackError> {
-        let positive = [
-            ("--diameter", self.diameter),
+        let across = match self.container {
+            Container::Cylinder => vec![("--diameter", self.diameter)],
+            Container::Box => vec![("--width", self.width), ("--depth", self.depth)],
+        };
+        let positive = across.into_iter().chain([
             ("--height", self.height),
             ("--size-min", self.size_min),
             ("--size-max", self.size_max),
@@ -186,7 +210,7 @@ impl Params {
             ("--unbalanced", self.unbalanced),
             ("--prep-unbalanced", self.prep_unbalanced),
             ("--tolerance", self.tolerance),
-        ];
+        ]);
         for (name, v) in positive {
             if !(v > 0.0 && v.is_finite()) {
                 return Err(PackError::Bad(format!(
@@ -240,10 +264,204 @@ impl Params {
         Ok(())
     }
 
-    /// The cross-section's area at radius `r`: the inscribed polygon of the cylinder wall.
-    fn area(&self, r: f64) -> f64 {
-        let n = f64::from(self.segments);
-        0.5 * n * r * r * (2.0 * PI / n).sin()
+    /// The container's inside as asked for, z from 0 to the height.
+    fn bounds(&self) -> Bounds {
+        let section = match self.container {
+            Container::Cylinder => Section::Circle {
+                radius: 0.5 * self.diameter,
+                segments: self.segments,
+            },
+            Container::Box => Section::Rect {
+                x: [-0.5 * self.width, 0.5 * self.width],
+                y: [-0.5 * self.depth, 0.5 * self.depth],
+            },
+        };
+        Bounds {
+            section,
+            bottom: 0.0,
+            top: self.height,
+        }
+    }
+
+    /// The container's sizes across with the options that set them, for [`PackError::TooLarge`].
+    fn spans(&self) -> Vec<(&'static str, f64)> {
+        match self.container {
+            Container::Cylinder => vec![("diameter", self.diameter), ("height", self.height)],
+            Container::Box => vec![
+                ("width", self.width),
+                ("depth", self.depth),
+                ("height", self.height),
+            ],
+        }
+    }
+}
+
+/// A container's cross-section.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Section {
+    /// The prism of `segments` facets inscribed in the circle of `radius` about the z axis.
+    Circle { radius: f64, segments: u32 },
+    /// From `x[0]` to `x[1]` and `y[0]` to `y[1]`.
+    Rect { x: [f64; 2], y: [f64; 2] },
+}
+
+/// A container's inside: its cross-section, from z = `bottom` to `top`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    pub section: Section,
+    pub bottom: f64,
+    pub top: f64,
+}
+
+/// What the servo needs of one wall: its area, its distance from the container's middle, and
+/// its share of the mean stress.
+struct WallGeometry {
+    area: f64,
+    half: f64,
+    weight: f64,
+}
+
+impl Bounds {
+    pub fn height(&self) -> f64 {
+        self.top - self.bottom
+    }
+
+    /// The cross-section's area (the cylinder's: its facet polygon's).
+    pub fn area(&self) -> f64 {
+        match self.section {
+            Section::Circle { radius, segments } => {
+                let n = f64::from(segments);
+                0.5 * n * radius * radius * (2.0 * PI / n).sin()
+            }
+            Section::Rect { x, y } => (x[1] - x[0]) * (y[1] - y[0]),
+        }
+    }
+
+    /// The cross-section's perimeter (the cylinder's: its facet polygon's).
+    fn perimeter(&self) -> f64 {
+        match self.section {
+            Section::Circle { radius, segments } => {
+                let n = f64::from(segments);
+                2.0 * n * radius * (PI / n).sin()
+            }
+            Section::Rect { x, y } => 2.0 * ((x[1] - x[0]) + (y[1] - y[0])),
+        }
+    }
+
+    /// Whether `x` is inside, at least `margin` from every wall (a negative margin lets it
+    /// out by as much). The cylinder's wall is its circle, not its facets.
+    pub fn holds(&self, x: &Vec3, margin: f64) -> bool {
+        let across = match self.section {
+            Section::Circle { radius, .. } => x.xy().norm() < radius - margin,
+            Section::Rect { x: xs, y: ys } => {
+                x.x > xs[0] + margin
+                    && x.x < xs[1] - margin
+                    && x.y > ys[0] + margin
+                    && x.y < ys[1] - margin
+            }
+        };
+        across && x.z > self.bottom + margin && x.z < self.top - margin
+    }
+
+    /// A uniformly random point of the cross-section's bounding rectangle, at a uniformly random
+    /// height.
+    fn draw(&self, rng: &mut ChaCha8Rng) -> Vec3 {
+        let (x, y) = match self.section {
+            Section::Circle { radius, .. } => ([-radius, radius], [-radius, radius]),
+            Section::Rect { x, y } => (x, y),
+        };
+        Vec3::new(
+            rng.random_range(x[0]..=x[1]),
+            rng.random_range(y[0]..=y[1]),
+            rng.random_range(self.bottom..=self.top),
+        )
+    }
+
+    /// The same container scaled by `f` about the bottom's middle.
+    fn scaled(&self, f: f64) -> Bounds {
+        let section = match self.section {
+            Section::Circle { radius, segments } => Section::Circle {
+                radius: radius * f,
+                segments,
+            },
+            Section::Rect { x, y } => Section::Rect {
+                x: x.map(|v| v * f),
+                y: y.map(|v| v * f),
+            },
+        };
+        Bounds {
+            section,
+            bottom: self.bottom * f,
+            top: self.top * f,
+        }
+    }
+
+    /// The walls that make this container, in the order of [`Container`].
+    fn walls(&self) -> Vec<Wall> {
+        let mut walls = vec![
+            Wall::plane(Vec3::new(0.0, 0.0, self.bottom), Vec3::z()),
+            Wall::plane(Vec3::new(0.0, 0.0, self.top), -Vec3::z()),
+        ];
+        match self.section {
+            Section::Circle { radius, segments } => {
+                // Twice the height: the platens stay inside it as they move.
+                let h = self.height();
+                walls.push(Wall::cylinder(
+                    Vec3::new(0.0, 0.0, self.bottom - 0.5 * h),
+                    Vec3::z(),
+                    radius,
+                    2.0 * h,
+                    segments,
+                ));
+            }
+            Section::Rect { x, y } => {
+                walls.push(Wall::plane(Vec3::new(x[0], 0.0, 0.0), Vec3::x()));
+                walls.push(Wall::plane(Vec3::new(x[1], 0.0, 0.0), -Vec3::x()));
+                walls.push(Wall::plane(Vec3::new(0.0, y[0], 0.0), Vec3::y()));
+                walls.push(Wall::plane(Vec3::new(0.0, y[1], 0.0), -Vec3::y()));
+            }
+        }
+        walls
+    }
+
+    /// Each wall's area, distance from the middle and share of the mean stress (its
+    /// directions over 3, a platen's halved as it shares its direction with the other).
+    fn geometry(&self) -> Vec<WallGeometry> {
+        let h = self.height();
+        let platen = || WallGeometry {
+            area: self.area(),
+            half: 0.5 * h,
+            weight: 1.0 / 6.0,
+        };
+        let mut out = vec![platen(), platen()];
+        match self.section {
+            Section::Circle { radius, .. } => out.push(WallGeometry {
+                area: self.perimeter() * h,
+                half: radius,
+                weight: 2.0 / 3.0,
+            }),
+            Section::Rect { x, y } => {
+                for (side, across) in [(y[1] - y[0], x[1] - x[0]), (x[1] - x[0], y[1] - y[0])] {
+                    for _ in 0..2 {
+                        out.push(WallGeometry {
+                            area: side * h,
+                            half: 0.5 * across,
+                            weight: 1.0 / 6.0,
+                        });
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// "0.3000 m across and 0.6000 m high", or "0.3000 x 0.3000 m and ...".
+    pub fn describe(&self) -> String {
+        let across = match self.section {
+            Section::Circle { radius, .. } => format!("{:.4} m across", 2.0 * radius),
+            Section::Rect { x, y } => format!("{:.4} x {:.4} m", x[1] - x[0], y[1] - y[0]),
+        };
+        format!("{across} and {:.4} m high", self.height())
     }
 }
 
@@ -273,7 +491,8 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
     let t = templates.len();
     let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
     // Step 1: (template, scale), drawn in order.
-    let target = (1.0 - p.porosity) * p.area(0.5 * p.diameter) * p.height;
+    let bounds = p.bounds();
+    let target = (1.0 - p.porosity) * bounds.area() * bounds.height();
     let mut picks: Vec<(u32, f64)> = Vec::new();
     let mut solid = 0.0;
     loop {
@@ -304,7 +523,7 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
     // The largest particle must fit the container.
     let span = |&(shape, scale): &(u32, f64)| 2.0 * templates[shape as usize].radius * scale;
     let widest = picks.iter().map(span).fold(0.0, f64::max);
-    for (what, limit) in [("diameter", p.diameter), ("height", p.height)] {
+    for (what, limit) in p.spans() {
         if widest >= limit {
             let (shape, scale) = *picks.iter().find(|x| span(x) == widest).expect("widest");
             return Err(PackError::TooLarge {
@@ -319,20 +538,22 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
     // Step 2: the cloud's container, and the particles in it, largest first. Where they do
     // not fit (a small container's walls leave less room), the container grows by 5 % and the
     // placing starts again, up to twice the first size.
-    let (r0, h0) = (0.5 * p.diameter, p.height);
-    let first = (solid / p.cloud_fraction / (p.area(r0) * h0))
+    let first = (solid / p.cloud_fraction / (bounds.area() * bounds.height()))
         .cbrt()
         .max(1.0);
     let mut grow = first;
     let poses = loop {
-        let inner = r0 * grow * (PI / f64::from(p.segments)).cos();
-        match place(&templates, &picks, inner, h0 * grow, p, &mut rng) {
+        // Inside a cylinder's facets: inside the circle inscribed in them.
+        let mut region = bounds.scaled(grow);
+        if let Section::Circle { radius, segments } = &mut region.section {
+            *radius *= (PI / f64::from(*segments)).cos();
+        }
+        match place(&templates, &picks, &region, p, &mut rng) {
             Ok(poses) => break poses,
             Err(_) if grow < 2.0 * first => grow *= 1.05,
             Err(i) => return Err(PackError::Crowded(i, TRIES)),
         }
     };
-    let (r0, h0) = (r0 * grow, h0 * grow);
     let material = Material {
         friction: p.prep_friction,
         damping: p.prep_damping,
@@ -345,16 +566,7 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
     for (&(shape, scale), &(c, rot)) in picks.iter().zip(&poses) {
         w.add_body(shape, scale, c, rot);
     }
-    w.walls.push(Wall::plane(Vec3::zeros(), Vec3::z()));
-    w.walls
-        .push(Wall::plane(Vec3::new(0.0, 0.0, h0), -Vec3::z()));
-    w.walls.push(Wall::cylinder(
-        Vec3::new(0.0, 0.0, -0.5 * h0),
-        Vec3::z(),
-        r0,
-        2.0 * h0,
-        p.segments,
-    ));
+    w.walls = bounds.scaled(grow).walls();
     if p.inertia_scaling {
         scale_inertia(&mut w);
     }
@@ -401,14 +613,13 @@ pub fn restore_inertia(w: &mut World, p: &Params) {
 /// Tries per particle before [`place`] gives up.
 const TRIES: usize = 20_000;
 
-/// Uniformly random poses for `picks` (template, scale), largest first, inside a cylinder of
-/// radius `inner` from z = 0 to `h`, clear of each other by a thousandth of the smallest size;
-/// `Err(i)` when particle `i` found no room in [`TRIES`] tries.
+/// Uniformly random poses for `picks` (template, scale), largest first, inside `region`, clear
+/// of its walls and of each other by a thousandth of the smallest size; `Err(i)` when particle
+/// `i` found no room in [`TRIES`] tries.
 fn place(
     templates: &[Shape],
     picks: &[(u32, f64)],
-    inner: f64,
-    h0: f64,
+    region: &Bounds,
     p: &Params,
     rng: &mut ChaCha8Rng,
 ) -> Result<Vec<(Vec3, UnitQuaternion<f64>)>, usize> {
@@ -443,15 +654,9 @@ fn place(
             }
             tries += 1;
             let rot = random_rotation(rng);
-            let c = Vec3::new(
-                rng.random_range(-inner..=inner),
-                rng.random_range(-inner..=inner),
-                rng.random_range(0.0..=h0),
-            );
+            let c = region.draw(rng);
             let verts: Vec<Vec3> = s.vertices.iter().map(|v| c + rot * (v * scale)).collect();
-            let inside = verts
-                .iter()
-                .all(|x| x.xy().norm() < inner - gap && x.z > gap && x.z < h0 - gap);
+            let inside = verts.iter().all(|x| region.holds(x, gap));
             if !inside {
                 continue;
             }
@@ -480,33 +685,58 @@ fn place(
     Ok(poses)
 }
 
-/// The container of a specimen: (radius, bottom z, top z).
-pub fn container(w: &World) -> (f64, f64, f64) {
-    let plane = |k: usize| match &w.walls[k].kind {
-        WallKind::Plane { offset, .. } => *offset,
-        _ => f64::NAN,
+/// The container of a specimen made by [`cloud`], as its walls are now; `None` when the walls
+/// are not a pack container (bottom and top platens, then a cylinder or four side planes).
+pub fn container(w: &World) -> Option<Bounds> {
+    let plane = |k: usize, normal: Vec3| match w.walls.get(k).map(|x| &x.kind) {
+        Some(WallKind::Plane { normal: n, offset }) if *n == normal => Some(*offset),
+        _ => None,
     };
-    let radius = match &w.walls[SIDE].kind {
-        WallKind::Cylinder { radius, .. } => *radius,
-        _ => f64::NAN,
+    let (bottom, top) = (plane(BOTTOM, Vec3::z())?, -plane(TOP, -Vec3::z())?);
+    let section = match (w.walls.len(), w.walls.get(SIDE).map(|x| &x.kind)) {
+        (
+            3,
+            Some(WallKind::Cylinder {
+                radius, segments, ..
+            }),
+        ) => Section::Circle {
+            radius: *radius,
+            segments: *segments,
+        },
+        (6, _) => Section::Rect {
+            x: [plane(SIDE, Vec3::x())?, -plane(SIDE + 1, -Vec3::x())?],
+            y: [plane(SIDE + 2, Vec3::y())?, -plane(SIDE + 3, -Vec3::y())?],
+        },
+        _ => return None,
     };
-    (radius, plane(BOTTOM), -plane(TOP))
+    Some(Bounds {
+        section,
+        bottom,
+        top,
+    })
 }
 
-/// Wall stresses (bottom, top, side; compression positive, Pa) and each wall's contact count.
-pub fn wall_stresses(w: &World, p: &Params) -> ([f64; 3], [usize; 3]) {
-    let (radius, bottom, top) = container(w);
-    let area = p.area(radius);
-    let mut counts = [0usize; 3];
+/// [`container`] of a world made by [`cloud`].
+fn bounds(w: &World) -> Bounds {
+    container(w).expect("the walls of a pack container")
+}
+
+/// Wall stresses (compression positive, Pa) and each wall's contact count, in the walls'
+/// order: a plane's the normal force over its area, the cylinder's the radial force of its
+/// contacts over its facets' area between the platens. `w` is made by [`cloud`].
+pub fn wall_stresses(w: &World) -> (Vec<f64>, Vec<usize>) {
+    let b = bounds(w);
+    let geometry = b.geometry();
+    let mut counts = vec![0usize; geometry.len()];
     let mut radial = 0.0;
     let first = w.contacts.lower_bound(&(Partner::Wall(0), 0));
     for (&(partner, _), c) in w.contacts.iter().skip(first) {
         let Partner::Wall(k) = partner else { continue };
         let k = k as usize;
-        if k < 3 {
-            counts[k] += 1;
+        if let Some(n) = counts.get_mut(k) {
+            *n += 1;
         }
-        if k == SIDE {
+        if matches!(b.section, Section::Circle { .. }) && k == SIDE {
             let out = Vec3::new(c.point.x, c.point.y, 0.0);
             let len = out.norm();
             if len > 0.0 {
@@ -515,39 +745,28 @@ pub fn wall_stresses(w: &World, p: &Params) -> ([f64; 3], [usize; 3]) {
             }
         }
     }
-    let side = 2.0 * (p.segments as f64) * radius * (PI / p.segments as f64).sin();
-    (
-        [
-            -w.walls[BOTTOM].force.z / area,
-            w.walls[TOP].force.z / area,
-            radial / (side * (top - bottom)),
-        ],
-        counts,
-    )
+    let stresses = (w.walls.iter().zip(&geometry))
+        .map(|(wall, g)| match &wall.kind {
+            WallKind::Plane { normal, .. } => -wall.force.dot(normal) / g.area,
+            _ => radial / g.area,
+        })
+        .collect();
+    (stresses, counts)
 }
 
-/// The walls' speeds (bottom, top, side; inward positive, m/s) under PFC's servo: each wall
+/// The walls' speeds (inward positive, m/s, in the walls' order) under PFC's servo: each wall
 /// `gain (p - sigma) A / (kn N dt)`, `N` its contacts (at least 1) and `A` its area, capped at
-/// `max_strain_rate` times the wall's distance from the centre. With `common`, every wall moves
-/// at one strain rate instead, the smallest servo gain's acting on the mean stress
-/// `(sigma_axial + 2 sigma_side) / 3`: the specimen shrinks alike in every direction.
-fn servo(
-    w: &World,
-    p: &Params,
-    stresses: &[f64; 3],
-    counts: &[usize; 3],
-    common: bool,
-) -> [f64; 3] {
-    let (radius, bottom, top) = container(w);
-    let half = [0.5 * (top - bottom), 0.5 * (top - bottom), radius];
-    let area = p.area(radius);
-    let areas = [area, area, 2.0 * PI * radius * (top - bottom)];
+/// `max_strain_rate` times the wall's distance from the middle. With `common`, every wall moves
+/// at one strain rate instead, the smallest servo gain's acting on the mean stress: the
+/// specimen shrinks alike in every direction.
+fn servo(w: &World, p: &Params, stresses: &[f64], counts: &[usize], common: bool) -> Vec<f64> {
+    let geometry = bounds(w).geometry();
     let (kn, dt) = (w.material.kn, w.dt);
-    let gain = |k: usize| p.gain * areas[k] / (kn * counts[k].max(1) as f64 * dt);
+    let gain = |k: usize| p.gain * geometry[k].area / (kn * counts[k].max(1) as f64 * dt);
     if common {
-        let mean = mean_stress(stresses);
-        let g = (0..3)
-            .map(|k| gain(k) / half[k])
+        let mean = mean_stress(&geometry, stresses);
+        let g = (0..geometry.len())
+            .map(|k| gain(k) / geometry[k].half)
             .fold(f64::INFINITY, f64::min);
         // Particle-particle contacts come first in the list.
         let pairs = w.contacts.lower_bound(&(Partner::Wall(0), 0));
@@ -557,37 +776,42 @@ fn servo(
             p.max_strain_rate
         };
         let rate = (g * (p.pressure - mean)).clamp(-cap, cap);
-        half.map(|h| rate * h)
+        geometry.iter().map(|g| rate * g.half).collect()
     } else {
         // A wall within half the tolerance rests: a servo that chases every fluctuation
         // keeps shaking the packing it should let settle.
-        [0, 1, 2].map(|k| {
-            let cap = p.max_strain_rate * half[k];
-            let error = p.pressure - stresses[k];
-            if error.abs() <= 0.5 * p.tolerance * p.pressure {
-                0.0
-            } else {
-                (gain(k) * error).clamp(-cap, cap)
-            }
-        })
+        (0..geometry.len())
+            .map(|k| {
+                let cap = p.max_strain_rate * geometry[k].half;
+                let error = p.pressure - stresses[k];
+                if error.abs() <= 0.5 * p.tolerance * p.pressure {
+                    0.0
+                } else {
+                    (gain(k) * error).clamp(-cap, cap)
+                }
+            })
+            .collect()
     }
 }
 
-/// Moves the walls at `speeds` (see [`servo`]).
-fn set_speeds(w: &mut World, speeds: [f64; 3]) {
-    w.walls[BOTTOM].velocity = Vec3::new(0.0, 0.0, speeds[BOTTOM]);
-    w.walls[TOP].velocity = Vec3::new(0.0, 0.0, -speeds[TOP]);
-    if let WallKind::Cylinder { radial_rate, .. } = &mut w.walls[SIDE].kind {
-        *radial_rate = -speeds[SIDE];
+/// Moves the walls inward at `speeds` (see [`servo`]).
+fn set_speeds(w: &mut World, speeds: &[f64]) {
+    for (wall, &v) in w.walls.iter_mut().zip(speeds) {
+        match &mut wall.kind {
+            WallKind::Plane { normal, .. } => wall.velocity = *normal * v,
+            WallKind::Cylinder { radial_rate, .. } => *radial_rate = -v,
+            WallKind::Facets { .. } => {}
+        }
     }
 }
 
 /// Where a preparation is, for progress reports.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Status {
     pub phase: &'static str,
     pub step: u64,
-    pub stresses: [f64; 3],
+    /// Every wall's stress, Pa (see [`wall_stresses`]).
+    pub stresses: Vec<f64>,
     pub porosity: f64,
     pub unbalanced: f64,
 }
@@ -600,20 +824,25 @@ fn solid_volume(w: &World) -> f64 {
         .sum()
 }
 
-/// Porosity of the specimen in its container.
-pub fn porosity(w: &World, p: &Params) -> f64 {
-    porosity_of(w, p, solid_volume(w))
+/// Porosity of the specimen (made by [`cloud`]) in its container.
+pub fn porosity(w: &World) -> f64 {
+    porosity_of(w, solid_volume(w))
 }
 
 /// [`porosity`] for bodies of `solid` volume in all.
-fn porosity_of(w: &World, p: &Params, solid: f64) -> f64 {
-    let (radius, bottom, top) = container(w);
-    1.0 - solid / (p.area(radius) * (top - bottom))
+fn porosity_of(w: &World, solid: f64) -> f64 {
+    let b = bounds(w);
+    1.0 - solid / (b.area() * b.height())
 }
 
-/// The mean of the wall stresses (bottom, top, side): `(sigma_axial + 2 sigma_side) / 3`.
-fn mean_stress(stresses: &[f64; 3]) -> f64 {
-    (0.5 * (stresses[BOTTOM] + stresses[TOP]) + 2.0 * stresses[SIDE]) / 3.0
+/// The mean of the wall stresses: `(sigma_x + sigma_y + sigma_z) / 3`, each direction's
+/// stress the mean of its walls'.
+fn mean_stress(geometry: &[WallGeometry], stresses: &[f64]) -> f64 {
+    geometry
+        .iter()
+        .zip(stresses)
+        .map(|(g, s)| g.weight * s)
+        .sum()
 }
 
 /// Steps 3 and 4 on a cloud from [`cloud`]: compacts it and brings it to equilibrium;
@@ -630,7 +859,7 @@ pub fn consolidate(
     w.material.friction = p.material.friction;
     w.material.damping = p.material.damping;
     phase(w, p, Phase::Equilibrium, start, every, &mut report)?;
-    set_speeds(w, [0.0; 3]);
+    set_speeds(w, &vec![0.0; w.walls.len()]);
     restore_inertia(w, p);
     Ok(())
 }
@@ -676,12 +905,12 @@ fn phase(
     // The bodies' volume does not change: summed once, not every step.
     let solid = solid_volume(w);
     loop {
-        let (stresses, counts) = wall_stresses(w, p);
+        let (stresses, counts) = wall_stresses(w);
         let status = Status {
             phase: name,
             step: w.step - start,
-            stresses,
-            porosity: porosity_of(w, p, solid),
+            stresses: stresses.clone(),
+            porosity: porosity_of(w, solid),
             unbalanced: w.unbalanced,
         };
         if status.step % every == 0 {
@@ -700,7 +929,8 @@ fn phase(
                 // (a frictionless packing keeps sliding at the target without densifying).
                 let plateau = history.len() == PLATEAU_SAMPLES
                     && (history[0] - status.porosity).abs() < PLATEAU_POROSITY;
-                near(mean_stress(&stresses)) && (w.unbalanced <= unbalanced || plateau)
+                let mean = mean_stress(&bounds(w).geometry(), &stresses);
+                near(mean) && (w.unbalanced <= unbalanced || plateau)
             }
             Phase::Equilibrium => stresses.iter().all(|&s| near(s)) && w.unbalanced <= unbalanced,
         };
@@ -717,7 +947,7 @@ fn phase(
             });
         }
         let speeds = servo(w, p, &stresses, &counts, which == Phase::Compaction);
-        set_speeds(w, speeds);
+        set_speeds(w, &speeds);
         w.step();
     }
 }
@@ -785,6 +1015,8 @@ pub fn calibrate(
     }
     let sample = Params {
         diameter: p.diameter * scale,
+        width: p.width * scale,
+        depth: p.depth * scale,
         height: p.height * scale,
         count: p
             .count
@@ -800,7 +1032,7 @@ pub fn calibrate(
         let mut w = cloud(templates.to_vec(), &q)?;
         particles = w.bodies.len();
         compact(&mut w, &q, every, |s, _| report(friction, s))?;
-        let n = porosity(&w, &q);
+        let n = porosity(&w);
         Ok(n / (1.0 - n))
     };
     let mut runs = vec![(0.0, run(0.0)?), (loose_friction, run(loose_friction)?)];
@@ -834,8 +1066,15 @@ pub fn calibrate(
 pub struct Summary {
     pub particles: usize,
     pub templates: usize,
-    /// The container at the end: inner diameter (the cylinder's radius x 2) and height, m.
-    pub diameter: f64,
+    pub container: Container,
+    /// The container at the end, m: the cylinder's diameter (its radius x 2), or the box's
+    /// sides along x and y; the platens' distance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub diameter: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub width: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub depth: Option<f64>,
     pub height: f64,
     pub porosity: f64,
     pub void_ratio: f64,
@@ -844,9 +1083,9 @@ pub struct Summary {
     /// The same without rattlers (particles of fewer than two particle contacts):
     /// (2 C - N1) / (N - N0 - N1), C the particle-particle contacts.
     pub mechanical_coordination: f64,
-    /// Bottom, top and side wall stresses, Pa, and the largest relative difference from the
-    /// target.
-    pub wall_stresses: [f64; 3],
+    /// Every wall's stress in the walls' order (see [`Container`]), Pa, and the largest relative
+    /// difference from the target.
+    pub wall_stresses: Vec<f64>,
     pub stress_error: f64,
     pub unbalanced: f64,
     /// Deviatoric anisotropy of the particle-particle contact normals: (15/2) sqrt(3/2 d:d),
@@ -880,7 +1119,7 @@ pub fn anisotropy(fabric: &nalgebra::Matrix3<f64>, count: usize) -> f64 {
 /// The summary of specimen `w` made with `p`.
 pub fn summary(w: &World, p: &Params) -> Summary {
     let n = w.bodies.len();
-    let (radius, bottom, top) = container(w);
+    let inside = bounds(w);
     let size = |b: usize| {
         let body = &w.bodies[b];
         equivalent_diameter(w.shapes[body.shape as usize].volume) * body.scale
@@ -911,18 +1150,33 @@ pub fn summary(w: &World, p: &Params) -> Summary {
             let slack = 0.01 * size(b);
             w.shapes[body.shape as usize].vertices.iter().any(|v| {
                 let x = body.pos + body.rot * (v * body.scale);
-                x.xy().norm() > radius + slack || x.z < bottom - slack || x.z > top + slack
+                !inside.holds(&x, -slack)
             })
         })
         .count();
-    let (stresses, _) = wall_stresses(w, p);
-    let phi = porosity(w, p);
+    let (stresses, _) = wall_stresses(w);
+    let phi = porosity(w);
     let mech = n as f64 - n0 as f64 - n1 as f64;
     Summary {
         particles: n,
         templates: w.shapes.len(),
-        diameter: 2.0 * radius,
-        height: top - bottom,
+        container: match inside.section {
+            Section::Circle { .. } => Container::Cylinder,
+            Section::Rect { .. } => Container::Box,
+        },
+        diameter: match inside.section {
+            Section::Circle { radius, .. } => Some(2.0 * radius),
+            Section::Rect { .. } => None,
+        },
+        width: match inside.section {
+            Section::Rect { x, .. } => Some(x[1] - x[0]),
+            Section::Circle { .. } => None,
+        },
+        depth: match inside.section {
+            Section::Rect { y, .. } => Some(y[1] - y[0]),
+            Section::Circle { .. } => None,
+        },
+        height: inside.height(),
         porosity: phi,
         void_ratio: phi / (1.0 - phi),
         coordination: if n > 0 {
@@ -935,11 +1189,11 @@ pub fn summary(w: &World, p: &Params) -> Summary {
         } else {
             0.0
         },
-        wall_stresses: stresses,
         stress_error: stresses
             .iter()
             .map(|s| (s - p.pressure).abs() / p.pressure)
             .fold(0.0, f64::max),
+        wall_stresses: stresses,
         unbalanced: w.unbalanced,
         anisotropy,
         anisotropy_noise: (pairs > 0).then(|| 7.5 / (pairs as f64).sqrt()),
@@ -984,26 +1238,44 @@ mod tests {
     #[test]
     fn the_count_fills_the_container_at_the_porosity_in_equal_numbers() {
         let cube = Shape::from_mesh(&crate::mesh::cube(0.5)).unwrap();
-        let p = Params {
-            diameter: 0.1,
-            height: 0.2,
-            size_min: 0.01,
-            size_max: 0.02,
-            ..Params::default()
-        };
-        let w = cloud(vec![cube.clone(), cube], &p).unwrap();
-        assert_eq!(w.bodies.len() % 2, 0);
-        let solid = solid_volume(&w);
-        let room = (1.0 - p.porosity) * p.area(0.05) * 0.2;
-        // Drawn until the solid fills it: over by less than two of the largest particles.
-        assert!(
-            solid >= room && solid < room + 2.0 * 0.02f64.powi(3),
-            "{solid} {room}"
-        );
-        // Nothing touches: the first step finds no contact.
-        let mut w = w;
-        w.step();
-        assert_eq!(w.contacts.len(), 0);
+        // The cylinder's cross-section is its 128 facets' polygon.
+        let polygon = 0.5 * 128.0 * 0.05f64.powi(2) * (2.0 * PI / 128.0).sin();
+        for (kind, section) in [(Container::Cylinder, polygon), (Container::Box, 0.1 * 0.08)] {
+            let p = Params {
+                container: kind,
+                diameter: 0.1,
+                width: 0.1,
+                depth: 0.08,
+                height: 0.2,
+                size_min: 0.01,
+                size_max: 0.02,
+                ..Params::default()
+            };
+            let w = cloud(vec![cube.clone(), cube.clone()], &p).unwrap();
+            assert_eq!(w.bodies.len() % 2, 0);
+            let solid = solid_volume(&w);
+            let room = (1.0 - p.porosity) * section * 0.2;
+            // Drawn until the solid fills it: over by less than two of the largest particles.
+            assert!(
+                solid >= room && solid < room + 2.0 * 0.02f64.powi(3),
+                "{kind:?}: {solid} {room}"
+            );
+            // The cloud's container is the specimen's scaled alike in every direction, and holds
+            // every corner of every body.
+            let b = container(&w).unwrap();
+            let f = b.height() / 0.2;
+            assert!(f > 1.0);
+            approx::assert_relative_eq!(b.area(), section * f * f, max_relative = 1e-12);
+            for body in &w.bodies {
+                for v in &w.shapes[body.shape as usize].vertices {
+                    assert!(b.holds(&(body.pos + body.rot * (v * body.scale)), 0.0));
+                }
+            }
+            // Nothing touches: the first step finds no contact.
+            let mut w = w;
+            w.step();
+            assert_eq!(w.contacts.len(), 0, "{kind:?}");
+        }
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! The `pack` tool: broken input and arguments, and a small specimen that must meet the
-//! issue's final-state conditions, with the same bytes on 1 and 2 threads.
+//! issue's final-state conditions (with the same bytes on 1 and 2 threads), in a cylinder and a box.
 
-use super::{fails, fixture, run_env};
+use super::{fails, fixture, run, run_env};
 
 /// Runs pack on bad input: exit 1 (2 for usage), the message holds every needle, no output.
 fn rejects(args: &[&str], stdin: &[u8], code: i32, needles: &[&str]) {
@@ -88,6 +88,32 @@ fn pack_rejects_broken_templates_and_arguments() {
         &nine,
         1,
         &["0 < E_MIN < E_MAX"],
+    );
+    // The box's sides belong to the box, the diameter to the cylinder.
+    rejects(&["--width", "0.2"], &nine, 1, &["--container box"]);
+    rejects(
+        &["--container", "box", "--diameter", "0.2"],
+        &nine,
+        1,
+        &["--diameter is the cylinder's"],
+    );
+    rejects(
+        &["--container", "box", "--depth", "0"],
+        &nine,
+        1,
+        &["--depth must be a positive number"],
+    );
+    rejects(
+        &["--container", "box", "--depth", "0.04"],
+        &nine,
+        1,
+        &["more than the container's depth"],
+    );
+    rejects(
+        &["--container", "sphere"],
+        &nine,
+        2,
+        &["invalid value 'sphere'"],
     );
     // Too few steps to settle: a clear error, and no half-made specimen on standard output.
     rejects(
@@ -217,6 +243,92 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
     assert!((field(s, "relative_density") - dr).abs() < 1e-12);
     // The specimen is a dem state: it reads back and runs on.
     let on = run_env("dem", &["--steps", "10"], &runs[0].0, &[]);
+    assert!(
+        on.status.success(),
+        "{}",
+        String::from_utf8_lossy(&on.stderr)
+    );
+}
+
+#[test]
+fn a_small_specimen_in_a_box_holds_the_pressure_on_all_six_walls() {
+    // 36 particles, soft as in the cylinder's test, in a box 60 x 50 x 120 mm: sides that differ
+    // so that a wall mixed up with another shows. About 10 s.
+    let dir = std::env::temp_dir().join(format!("pack-box-e2e-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("summary.json");
+    let args = [
+        "--container",
+        "box",
+        "--width",
+        "0.06",
+        "--depth",
+        "0.05",
+        "--height",
+        "0.12",
+        "--count",
+        "36",
+        "--size-min",
+        "0.012",
+        "--size-max",
+        "0.02",
+        "--size-measure",
+        "circumscribed",
+        "--kn",
+        "1e6",
+        "--ks",
+        "5e5",
+        "--pressure",
+        "1e3",
+        "--loose-strain-rate",
+        "4",
+        "--summary",
+        path.to_str().unwrap(),
+        "--every",
+        "20000",
+    ];
+    let out = run("pack", &args, &fixture("templates_seed7.obj"));
+    assert!(
+        out.status.success(),
+        "pack failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(s["container"], "box");
+    assert!(s.get("diameter").is_none(), "{s}");
+    let stresses = s["wall_stresses"].as_array().unwrap();
+    assert_eq!(stresses.len(), 6, "bottom, top and four sides: {s}");
+    for x in stresses {
+        let x = x.as_f64().unwrap();
+        assert!((x - 1e3).abs() <= 20.0, "wall stress {x} Pa");
+    }
+    assert!(field(&s, "unbalanced") <= 1e-3);
+    assert_eq!(field(&s, "outside"), 0.0);
+    let overlap = field(&s, "max_overlap");
+    assert!(overlap > 0.0 && overlap < 0.01, "largest overlap {overlap}");
+    // One strain rate in every direction while compacting: the box keeps its proportions
+    // (the equilibrium's per-wall servo moves the walls by a little).
+    let (w, d, h) = (field(&s, "width"), field(&s, "depth"), field(&s, "height"));
+    assert!((w / d - 1.2).abs() < 0.02, "width / depth {}", w / d);
+    assert!((h / d - 2.4).abs() < 0.04, "height / depth {}", h / d);
+    // The state's six plane walls are where the summary says: the x walls' offsets are
+    // -x_min and x_max's distance apart by the width.
+    let text = String::from_utf8(out.stdout.clone()).unwrap();
+    let walls: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["type"] == "wall")
+        .collect();
+    assert_eq!(walls.len(), 6);
+    assert!(walls.iter().all(|v| v["kind"] == "plane"));
+    let offset = |k: usize| walls[k]["offset"].as_f64().unwrap();
+    assert!(((-offset(3) - offset(2)) - w).abs() < 1e-12);
+    assert!(((-offset(5) - offset(4)) - d).abs() < 1e-12);
+    assert!(((-offset(1) - offset(0)) - h).abs() < 1e-12);
+    // The specimen runs on in dem.
+    let on = run("dem", &["--steps", "10"], &out.stdout);
     assert!(
         on.status.success(),
         "{}",

@@ -4,7 +4,7 @@ use anyhow::{bail, Context};
 use clap::{Parser, ValueEnum};
 use shared::cli;
 use shared::dem::{shape::Shape, state, world::Material};
-use shared::pack::{self, Params, SizeMeasure};
+use shared::pack::{self, Container, Params, SizeMeasure};
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -14,12 +14,14 @@ Examples:
   polygen --faces 6..14 --seed 7 | pack --diameter 0.15 --height 0.3 --summary ip.json > ip.jsonl
   pack --count 60 --diameter 0.1 --height 0.2 --size-min 0.012 --size-max 0.02 < nine.obj > small.jsonl
   pack --relative-density 0.8 < nine.obj > dr08.jsonl     (calibrates on a half-size sample first)
+  pack --container box --width 0.2 --depth 0.2 --height 0.4 < nine.obj > box.jsonl
   pack ... | dem --steps 1000 > later.jsonl      (the specimen is a dem state: it runs on)
 
 Every object of the OBJ stream on standard input is a template; particle i is template i mod T,
 so the templates come in equal numbers. The specimen goes to standard output as a dem state
-(JSON lines, docs/dem-state.md): bodies, contacts with their shear springs, and three walls:
-0 the bottom platen, 1 the top platen, 2 the cylinder (all frictionless, at rest). A summary
+(JSON lines, docs/dem-state.md): bodies, contacts with their shear springs, and the walls
+(all frictionless, at rest): 0 the bottom platen, 1 the top platen, then 2 the cylinder, or in
+a box 2 to 5 the side planes at x-min, x-max, y-min, y-max. A summary
 (count, porosity, void ratio, coordination, wall stresses, unbalanced-force ratio, contact-normal
 anisotropy, largest overlap, wall-clock time) goes to standard error, and as JSON to --summary.
 
@@ -31,6 +33,15 @@ unbalanced-force ratio is below --unbalanced. --relative-density DR first finds 
 friction), e_max (--loose-friction) and the preparation friction for DR on a smaller sample
 (--calibration-scale). Lengths in m, stresses in Pa.";
 
+/// The container's shape.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Vessel {
+    /// A cylinder (--diameter) between two platens
+    Cylinder,
+    /// A box (--width along x, --depth along y) between two platens
+    Box,
+}
+
 /// What particle size means.
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum Measure {
@@ -41,13 +52,23 @@ enum Measure {
 }
 
 /// Turns particle templates (an OBJ stream on standard input) into a dense specimen consolidated
-/// isotropically in a cylinder between two platens; writes it as a dem state to standard output.
+/// isotropically in a cylinder (or a box) between two platens; writes it as a dem state to
+/// standard output.
 #[derive(Parser, Debug)]
 #[command(version, after_help = EXAMPLES)]
 struct Cli {
-    /// Container diameter, m
-    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
-    diameter: f64,
+    /// The container
+    #[arg(long, value_enum, default_value_t = Vessel::Cylinder)]
+    container: Vessel,
+    /// The cylinder's diameter, m [default: 0.3]
+    #[arg(long, allow_negative_numbers = true)]
+    diameter: Option<f64>,
+    /// The box's side along x, m [default: 0.3]
+    #[arg(long, allow_negative_numbers = true)]
+    width: Option<f64>,
+    /// The box's side along y, m [default: 0.3]
+    #[arg(long, allow_negative_numbers = true)]
+    depth: Option<f64>,
     /// Container height, m
     #[arg(long, default_value_t = 0.6, allow_negative_numbers = true)]
     height: f64,
@@ -162,6 +183,12 @@ struct Cli {
     every: u64,
 }
 
+/// Wall stresses for a progress line: "1.0000e5 9.9000e4 ...".
+fn stresses(s: &[f64]) -> String {
+    let parts: Vec<String> = s.iter().map(|x| format!("{x:.4e}")).collect();
+    parts.join(" ")
+}
+
 /// `E_MIN,E_MAX` as two numbers.
 fn parse_limits(s: &str) -> Result<(f64, f64), String> {
     let (a, b) = s
@@ -212,8 +239,25 @@ fn run(args: Cli) -> anyhow::Result<()> {
     if !(0.0..1.0).contains(&args.damping) {
         bail!("--damping must be in [0, 1), got {}", args.damping);
     }
+    let container = match args.container {
+        Vessel::Cylinder => {
+            if args.width.is_some() || args.depth.is_some() {
+                bail!("--width and --depth are the sides of a box: add --container box, or give the cylinder's --diameter");
+            }
+            Container::Cylinder
+        }
+        Vessel::Box => {
+            if args.diameter.is_some() {
+                bail!("--diameter is the cylinder's: a box has --width and --depth");
+            }
+            Container::Box
+        }
+    };
     let params = Params {
-        diameter: args.diameter,
+        container,
+        diameter: args.diameter.unwrap_or(0.3),
+        width: args.width.unwrap_or(0.3),
+        depth: args.depth.unwrap_or(0.3),
         height: args.height,
         size_min: args.size_min,
         size_max: args.size_max,
@@ -268,8 +312,8 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 args.every,
                 |f, s| {
                     eprintln!(
-                        "pack: calibration at friction {f:.4}, {} step {}: wall stresses {:.4e} {:.4e} {:.4e} Pa, porosity {:.4}, unbalanced {:.3e}",
-                        s.phase, s.step, s.stresses[0], s.stresses[1], s.stresses[2], s.porosity, s.unbalanced
+                        "pack: calibration at friction {f:.4}, {} step {}: wall stresses {} Pa, porosity {:.4}, unbalanced {:.3e}",
+                        s.phase, s.step, stresses(&s.stresses), s.porosity, s.unbalanced
                     )
                 },
             )?;
@@ -285,13 +329,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
     };
     let mut world = pack::cloud(shapes, &params)?;
     let prep_dt = world.dt;
-    let (r0, b0, t0) = pack::container(&world);
+    let cloud = pack::container(&world).context("the loose cloud has no container")?;
     eprintln!(
-        "pack: {} particles of {} templates in a loose cloud {:.4} m across and {:.4} m high; time step {:.4e} s",
+        "pack: {} particles of {} templates in a loose cloud {}; time step {:.4e} s",
         world.bodies.len(),
         world.shapes.len(),
-        2.0 * r0,
-        t0 - b0,
+        cloud.describe(),
         world.dt
     );
     let mut snapshots = match &args.vtk {
@@ -304,8 +347,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let mut vtk_error = None;
     pack::consolidate(&mut world, &params, args.every, |s, w| {
         eprintln!(
-            "pack: {} step {}: wall stresses {:.4e} {:.4e} {:.4e} Pa, porosity {:.4}, unbalanced {:.3e}",
-            s.phase, s.step, s.stresses[0], s.stresses[1], s.stresses[2], s.porosity, s.unbalanced
+            "pack: {} step {}: wall stresses {} Pa, porosity {:.4}, unbalanced {:.3e}",
+            s.phase,
+            s.step,
+            stresses(&s.stresses),
+            s.porosity,
+            s.unbalanced
         );
         if let (Some(v), None) = (snapshots.as_mut(), &vtk_error) {
             vtk_error = v.write(w).err();
@@ -339,14 +386,15 @@ fn run(args: Cli) -> anyhow::Result<()> {
     if let Some(c) = &calibration {
         line["calibration"] = serde_json::to_value(c)?;
     }
+    let specimen = pack::container(&world).context("the specimen has no container")?;
     eprintln!(
-        "pack: {} particles, {:.4} m across, {:.4} m high: porosity {:.4}, void ratio {:.4}, coordination {:.3} ({:.3} without rattlers)",
-        summary.particles, summary.diameter, summary.height, summary.porosity, summary.void_ratio,
+        "pack: {} particles, {}: porosity {:.4}, void ratio {:.4}, coordination {:.3} ({:.3} without rattlers)",
+        summary.particles, specimen.describe(), summary.porosity, summary.void_ratio,
         summary.coordination, summary.mechanical_coordination
     );
     eprintln!(
-        "pack: wall stresses {:.4e} {:.4e} {:.4e} Pa (largest error {:.2} %), unbalanced {:.3e}, anisotropy {:.4} (sampling alone: {:.4}), largest overlap {:.3e} of a size, {} outside; {} steps in {:.1} s",
-        summary.wall_stresses[0], summary.wall_stresses[1], summary.wall_stresses[2],
+        "pack: wall stresses {} Pa (largest error {:.2} %), unbalanced {:.3e}, anisotropy {:.4} (sampling alone: {:.4}), largest overlap {:.3e} of a size, {} outside; {} steps in {:.1} s",
+        stresses(&summary.wall_stresses),
         100.0 * summary.stress_error, summary.unbalanced, summary.anisotropy,
         summary.anisotropy_noise.unwrap_or(f64::NAN), summary.max_overlap,
         summary.outside, summary.steps, secs
