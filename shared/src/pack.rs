@@ -10,15 +10,17 @@
 //!    with a uniformly random orientation, wherever it is inside and clear of the others (an
 //!    exact separation test). Nothing touches.
 //! 3. **Compaction.** No gravity (a 600 mm column of sand under gravity would vary its stress by
-//!    a tenth of the 100 kPa target). The two platens and the cylinder wall, all frictionless,
-//!    move in at one strain rate, so the cloud shrinks alike in every direction (an isotropic
-//!    fabric): the rate follows the mean wall stress under PFC's servo law (see [`servo`]),
+//!    a tenth of the 100 kPa target). The two platens and the cylinder wall (or the box's four
+//!    sides), all frictionless, move in at one strain rate, so the cloud shrinks alike in every
+//!    direction (an isotropic fabric): the rate follows the mean wall stress under PFC's servo
+//!    law with integral action (see [`servo`]),
 //!    capped at `max_strain_rate` (`loose_strain_rate` while there are fewer particle-particle
 //!    contacts than particles). Particle friction is the preparation friction, damping
 //!    `prep_damping`. It ends when the mean stress is within `tolerance` of `p` and either the
 //!    unbalanced-force ratio is below `prep_unbalanced` or the porosity has changed by less than
 //!    1e-4 over the last 10 000 steps (frictionless packings keep sliding at the target).
-//! 4. **Equilibrium.** The particle friction and damping become the material's, and each wall
+//! 4. **Equilibrium.** The particle friction becomes the material's (the damping stays
+//!    `prep_damping`: the material's 0.3 let a few bodies vibrate for 100 000 steps), and each wall
 //!    follows its own servo (resting while within half the tolerance) until every wall stress
 //!    is within `tolerance` of `p` and the unbalanced-force ratio is below `unbalanced`. The
 //!    walls then stop, the true inertia comes back, and the state is the specimen.
@@ -102,9 +104,9 @@ pub struct Params {
     pub pressure: f64,
     /// Particle friction during compaction.
     pub prep_friction: f64,
-    /// Local damping during compaction.
+    /// Local damping during the preparation (compaction and equilibrium).
     pub prep_damping: f64,
-    /// The specimen's material (friction and damping from step 4 on).
+    /// The specimen's material (its friction from step 4 on, its damping in the state written).
     pub material: Material,
     pub seed: u64,
     /// Time step over the critical one.
@@ -128,6 +130,8 @@ pub struct Params {
     pub loose_strain_rate: f64,
     /// Servo gain (PFC's alpha), 0 to 1.
     pub gain: f64,
+    /// Integral time of the compaction's servo, in steps (see [`servo`]); 0: none.
+    pub integral_steps: u64,
     /// Steps allowed in all.
     pub max_steps: u64,
     /// Flat facets of the cylinder wall.
@@ -161,6 +165,7 @@ impl Default for Params {
             max_strain_rate: 4.0,
             loose_strain_rate: 20.0,
             gain: 0.5,
+            integral_steps: 2000,
             max_steps: 2_000_000,
             segments: 128,
         }
@@ -756,15 +761,28 @@ pub fn wall_stresses(w: &World) -> (Vec<f64>, Vec<usize>) {
 
 /// The walls' speeds (inward positive, m/s, in the walls' order) under PFC's servo: each wall
 /// `gain (p - sigma) A / (kn N dt)`, `N` its contacts (at least 1) and `A` its area, capped at
-/// `max_strain_rate` times the wall's distance from the middle. With `common`, every wall moves
-/// at one strain rate instead, the smallest servo gain's acting on the mean stress: the
-/// specimen shrinks alike in every direction.
-fn servo(w: &World, p: &Params, stresses: &[f64], counts: &[usize], common: bool) -> Vec<f64> {
+/// `max_strain_rate` times the wall's distance from the middle. With `common` (the integral
+/// term, Pa), every wall moves at one strain rate instead, the smallest servo gain's acting on
+/// the mean stress's error plus the integral: the specimen shrinks alike in every direction.
+///
+/// The gain is PFC's: it takes the wall's own contacts for the spring it pushes, but that spring
+/// is in series with the whole packing, and a loose packing gives way as it rearranges: the
+/// error decays over tens of thousands of steps instead of a few. The integral, the error
+/// summed over `integral_steps`, makes up for that. It grows only while the walls are not at
+/// their cap (no wind-up while the cloud is loose) and goes back to zero when the error changes
+/// sign, so that it never drives the stress past the target.
+fn servo(
+    w: &World,
+    p: &Params,
+    stresses: &[f64],
+    counts: &[usize],
+    common: Option<&mut f64>,
+) -> Vec<f64> {
     let geometry = bounds(w).geometry();
     let (kn, dt) = (w.material.kn, w.dt);
     let gain = |k: usize| p.gain * geometry[k].area / (kn * counts[k].max(1) as f64 * dt);
-    if common {
-        let mean = mean_stress(&geometry, stresses);
+    if let Some(integral) = common {
+        let error = p.pressure - mean_stress(&geometry, stresses);
         let g = (0..geometry.len())
             .map(|k| gain(k) / geometry[k].half)
             .fold(f64::INFINITY, f64::min);
@@ -775,7 +793,14 @@ fn servo(w: &World, p: &Params, stresses: &[f64], counts: &[usize], common: bool
         } else {
             p.max_strain_rate
         };
-        let rate = (g * (p.pressure - mean)).clamp(-cap, cap);
+        if error * *integral < 0.0 {
+            *integral = 0.0;
+        }
+        let wanted = g * (error + *integral);
+        if p.integral_steps > 0 && wanted.abs() < cap {
+            *integral += error / p.integral_steps as f64;
+        }
+        let rate = wanted.clamp(-cap, cap);
         geometry.iter().map(|g| rate * g.half).collect()
     } else {
         // A wall within half the tolerance rests: a servo that chases every fluctuation
@@ -857,8 +882,8 @@ pub fn consolidate(
     let start = w.step;
     phase(w, p, Phase::Compaction, start, every, &mut report)?;
     w.material.friction = p.material.friction;
-    w.material.damping = p.material.damping;
     phase(w, p, Phase::Equilibrium, start, every, &mut report)?;
+    w.material.damping = p.material.damping;
     set_speeds(w, &vec![0.0; w.walls.len()]);
     restore_inertia(w, p);
     Ok(())
@@ -904,6 +929,8 @@ fn phase(
     let mut history: std::collections::VecDeque<f64> = std::collections::VecDeque::new();
     // The bodies' volume does not change: summed once, not every step.
     let solid = solid_volume(w);
+    // The compaction servo's integral term, Pa.
+    let mut integral = 0.0;
     loop {
         let (stresses, counts) = wall_stresses(w);
         let status = Status {
@@ -946,7 +973,8 @@ fn phase(
                 unbalanced: w.unbalanced,
             });
         }
-        let speeds = servo(w, p, &stresses, &counts, which == Phase::Compaction);
+        let common = (which == Phase::Compaction).then_some(&mut integral);
+        let speeds = servo(w, p, &stresses, &counts, common);
         set_speeds(w, &speeds);
         w.step();
     }
@@ -1276,6 +1304,59 @@ mod tests {
             w.step();
             assert_eq!(w.contacts.len(), 0, "{kind:?}");
         }
+    }
+
+    #[test]
+    fn the_compaction_servo_integrates_only_below_its_cap_and_resets_when_the_error_turns() {
+        let cube = Shape::from_mesh(&crate::mesh::cube(0.5)).unwrap();
+        let p = Params {
+            count: Some(4),
+            diameter: 0.1,
+            height: 0.2,
+            size_min: 0.01,
+            size_max: 0.02,
+            ..Params::default()
+        };
+        let w = cloud(vec![cube], &p).unwrap();
+        let half = bounds(&w)
+            .geometry()
+            .iter()
+            .map(|g| g.half)
+            .collect::<Vec<_>>();
+        // Nothing on the walls: one contact's gain, so the walls go at the loose cloud's cap
+        // and nothing is integrated.
+        let mut integral = 0.0;
+        let v = servo(&w, &p, &[0.0; 3], &[0; 3], Some(&mut integral));
+        assert_eq!(integral, 0.0);
+        for (v, h) in v.iter().zip(&half) {
+            approx::assert_relative_eq!(*v, p.loose_strain_rate * h, max_relative = 1e-12);
+        }
+        // Near the target on stiff walls (a million contacts each): below the cap, so the error
+        // adds up, a 2000th of it each step, and speeds the walls up by as much.
+        let counts = [1_000_000; 3];
+        let near = [0.99 * p.pressure; 3];
+        let first = servo(&w, &p, &near, &counts, Some(&mut integral));
+        approx::assert_relative_eq!(integral, 0.01 * p.pressure / 2000.0, max_relative = 1e-12);
+        let second = servo(&w, &p, &near, &counts, Some(&mut integral));
+        approx::assert_relative_eq!(
+            second[SIDE] / first[SIDE],
+            1.0 + 1.0 / 2000.0,
+            max_relative = 1e-9
+        );
+        assert!(first[SIDE] > 0.0 && first[SIDE] < p.max_strain_rate * half[SIDE]);
+        // Past the target: the integral starts again from zero at once, and the walls back out.
+        let past = [1.01 * p.pressure; 3];
+        let back = servo(&w, &p, &past, &counts, Some(&mut integral));
+        approx::assert_relative_eq!(integral, -0.01 * p.pressure / 2000.0, max_relative = 1e-12);
+        assert!(back.iter().all(|&v| v < 0.0), "{back:?}");
+        // Without integral action it never grows.
+        let q = Params {
+            integral_steps: 0,
+            ..p.clone()
+        };
+        let mut integral = 0.0;
+        servo(&w, &q, &near, &counts, Some(&mut integral));
+        assert_eq!(integral, 0.0);
     }
 
     #[test]

@@ -323,6 +323,15 @@ fn a_small_specimen_in_a_box_holds_the_pressure_on_all_six_walls() {
         .collect();
     assert_eq!(walls.len(), 6);
     assert!(walls.iter().all(|v| v["kind"] == "plane"));
+    // Prepared at the preparation's damping, handed on with the material's (0.3 by default)
+    // and its friction.
+    let material: serde_json::Value = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .find(|v| v["type"] == "material")
+        .unwrap();
+    assert_eq!(material["damping"], 0.3);
+    assert_eq!(material["friction"], 0.5);
     let offset = |k: usize| walls[k]["offset"].as_f64().unwrap();
     assert!(((-offset(3) - offset(2)) - w).abs() < 1e-12);
     assert!(((-offset(5) - offset(4)) - d).abs() < 1e-12);

@@ -116,13 +116,13 @@ struct Cli {
     #[arg(long, value_name = "E_MIN,E_MAX", conflicts_with = "relative_density",
           value_parser = parse_limits)]
     void_ratio_limits: Option<(f64, f64)>,
-    /// Local damping while compacting
+    /// Local damping while preparing (compaction and equilibrium; the state gets --damping)
     #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
     prep_damping: f64,
     /// The specimen's particle friction (the paper's 0.5)
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     friction: f64,
-    /// The specimen's local damping (the paper's 0.3)
+    /// The specimen's local damping, in the state written (the paper's 0.3)
     #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     damping: f64,
     /// Density, kg/m^3
@@ -165,6 +165,9 @@ struct Cli {
     /// Servo gain (0 to 1)
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     gain: f64,
+    /// Integral time of the compaction's servo, steps (0: proportional only; docs/pack.md)
+    #[arg(long, value_name = "STEPS", default_value_t = 2000)]
+    servo_integral: u64,
     /// Steps allowed in all
     #[arg(long, default_value_t = 2_000_000)]
     max_steps: u64,
@@ -288,6 +291,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         max_strain_rate: args.max_strain_rate,
         loose_strain_rate: args.loose_strain_rate,
         gain: args.gain,
+        integral_steps: args.servo_integral,
         max_steps: args.max_steps,
         segments: args.segments,
     };
