@@ -1,8 +1,8 @@
 # Figure 8 of the paper: the specimens of the four groups (I_P, Ab_1, Ab_2, Ab_3), consolidated
 # isotropically to 100 kPa by `pack`, drawn side by side. Quick scale by default (150 x 300 mm,
-# 288 particles each, 1-2 minutes a group on 2 cores); the paper's full scale with
+# 288 particles each, under 100 s a group on 2 cores); the paper's full scale with
 #   make fig8 SPECIMEN="--diameter 0.3 --height 0.6"
-# (2259 particles, about 15 minutes a group). $(OUT)/fig8.jsonl: the specimens' summaries,
+# (2259 particles, 11-17 minutes a group). $(OUT)/fig8.jsonl: the specimens' summaries,
 # one JSON line each (docs/pack.md, "Output").
 
 SPECIMEN ?= --diameter 0.15 --height 0.3
