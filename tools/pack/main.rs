@@ -26,10 +26,11 @@ a box 2 to 5 the side planes at x-min, x-max, y-min, y-max. A summary
 anisotropy, largest overlap, wall-clock time) goes to standard error, and as JSON to --summary.
 
 How (docs/pack.md): a loose cloud without contacts in the container enlarged to fit it, no
-gravity; the walls close in at one strain rate (servo on the mean stress) at --prep-friction
-until the mean stress is within --tolerance of --pressure; then the particle friction is
-restored and each wall holds its own servo until every wall is within --tolerance and the
-unbalanced-force ratio is below --unbalanced. --relative-density DR first finds e_min (no
+gravity; the walls close in at one strain rate (a servo with integral action on the mean stress)
+at --prep-friction until the mean stress is within --tolerance of --pressure; then the particle
+friction is restored and each wall holds its own servo until every wall is within --tolerance
+and the unbalanced-force ratio is below --unbalanced (damping --prep-damping throughout; the
+state carries --damping). --relative-density DR first finds e_min (no
 friction), e_max (--loose-friction) and the preparation friction for DR on a smaller sample
 (--calibration-scale). Lengths in m, stresses in Pa.";
 
