@@ -731,7 +731,11 @@ fn bounds(w: &World) -> Bounds {
 /// contacts over its facets' area between the platens. `w` is made by [`cloud`].
 pub fn wall_stresses(w: &World) -> (Vec<f64>, Vec<usize>) {
     let b = bounds(w);
-    let geometry = b.geometry();
+    stresses_in(w, &b, &b.geometry())
+}
+
+/// [`wall_stresses`] in the container `b` of these walls' `geometry`.
+fn stresses_in(w: &World, b: &Bounds, geometry: &[WallGeometry]) -> (Vec<f64>, Vec<usize>) {
     let mut counts = vec![0usize; geometry.len()];
     let mut radial = 0.0;
     let first = w.contacts.lower_bound(&(Partner::Wall(0), 0));
@@ -750,7 +754,7 @@ pub fn wall_stresses(w: &World) -> (Vec<f64>, Vec<usize>) {
             }
         }
     }
-    let stresses = (w.walls.iter().zip(&geometry))
+    let stresses = (w.walls.iter().zip(geometry))
         .map(|(wall, g)| match &wall.kind {
             WallKind::Plane { normal, .. } => -wall.force.dot(normal) / g.area,
             _ => radial / g.area,
@@ -774,15 +778,15 @@ pub fn wall_stresses(w: &World) -> (Vec<f64>, Vec<usize>) {
 fn servo(
     w: &World,
     p: &Params,
+    geometry: &[WallGeometry],
     stresses: &[f64],
     counts: &[usize],
     common: Option<&mut f64>,
 ) -> Vec<f64> {
-    let geometry = bounds(w).geometry();
     let (kn, dt) = (w.material.kn, w.dt);
     let gain = |k: usize| p.gain * geometry[k].area / (kn * counts[k].max(1) as f64 * dt);
     if let Some(integral) = common {
-        let error = p.pressure - mean_stress(&geometry, stresses);
+        let error = p.pressure - mean_stress(geometry, stresses);
         let g = (0..geometry.len())
             .map(|k| gain(k) / geometry[k].half)
             .fold(f64::INFINITY, f64::min);
@@ -851,12 +855,11 @@ fn solid_volume(w: &World) -> f64 {
 
 /// Porosity of the specimen (made by [`cloud`]) in its container.
 pub fn porosity(w: &World) -> f64 {
-    porosity_of(w, solid_volume(w))
+    porosity_of(&bounds(w), solid_volume(w))
 }
 
 /// [`porosity`] for bodies of `solid` volume in all.
-fn porosity_of(w: &World, solid: f64) -> f64 {
-    let b = bounds(w);
+fn porosity_of(b: &Bounds, solid: f64) -> f64 {
     1.0 - solid / (b.area() * b.height())
 }
 
@@ -932,12 +935,15 @@ fn phase(
     // The compaction servo's integral term, Pa.
     let mut integral = 0.0;
     loop {
-        let (stresses, counts) = wall_stresses(w);
+        // The container as the walls have it this step.
+        let b = bounds(w);
+        let geometry = b.geometry();
+        let (stresses, counts) = stresses_in(w, &b, &geometry);
         let status = Status {
             phase: name,
             step: w.step - start,
             stresses: stresses.clone(),
-            porosity: porosity_of(w, solid),
+            porosity: porosity_of(&b, solid),
             unbalanced: w.unbalanced,
         };
         if status.step % every == 0 {
@@ -956,7 +962,7 @@ fn phase(
                 // (a frictionless packing keeps sliding at the target without densifying).
                 let plateau = history.len() == PLATEAU_SAMPLES
                     && (history[0] - status.porosity).abs() < PLATEAU_POROSITY;
-                let mean = mean_stress(&bounds(w).geometry(), &stresses);
+                let mean = mean_stress(&geometry, &stresses);
                 near(mean) && (w.unbalanced <= unbalanced || plateau)
             }
             Phase::Equilibrium => stresses.iter().all(|&s| near(s)) && w.unbalanced <= unbalanced,
@@ -974,7 +980,7 @@ fn phase(
             });
         }
         let common = (which == Phase::Compaction).then_some(&mut integral);
-        let speeds = servo(w, p, &stresses, &counts, common);
+        let speeds = servo(w, p, &geometry, &stresses, &counts, common);
         set_speeds(w, &speeds);
         w.step();
     }
@@ -1318,15 +1324,12 @@ mod tests {
             ..Params::default()
         };
         let w = cloud(vec![cube], &p).unwrap();
-        let half = bounds(&w)
-            .geometry()
-            .iter()
-            .map(|g| g.half)
-            .collect::<Vec<_>>();
+        let geometry = bounds(&w).geometry();
+        let half = geometry.iter().map(|g| g.half).collect::<Vec<_>>();
         // Nothing on the walls: one contact's gain, so the walls go at the loose cloud's cap
         // and nothing is integrated.
         let mut integral = 0.0;
-        let v = servo(&w, &p, &[0.0; 3], &[0; 3], Some(&mut integral));
+        let v = servo(&w, &p, &geometry, &[0.0; 3], &[0; 3], Some(&mut integral));
         assert_eq!(integral, 0.0);
         for (v, h) in v.iter().zip(&half) {
             approx::assert_relative_eq!(*v, p.loose_strain_rate * h, max_relative = 1e-12);
@@ -1335,9 +1338,9 @@ mod tests {
         // adds up, a 2000th of it each step, and speeds the walls up by as much.
         let counts = [1_000_000; 3];
         let near = [0.99 * p.pressure; 3];
-        let first = servo(&w, &p, &near, &counts, Some(&mut integral));
+        let first = servo(&w, &p, &geometry, &near, &counts, Some(&mut integral));
         approx::assert_relative_eq!(integral, 0.01 * p.pressure / 2000.0, max_relative = 1e-12);
-        let second = servo(&w, &p, &near, &counts, Some(&mut integral));
+        let second = servo(&w, &p, &geometry, &near, &counts, Some(&mut integral));
         approx::assert_relative_eq!(
             second[SIDE] / first[SIDE],
             1.0 + 1.0 / 2000.0,
@@ -1346,7 +1349,7 @@ mod tests {
         assert!(first[SIDE] > 0.0 && first[SIDE] < p.max_strain_rate * half[SIDE]);
         // Past the target: the integral starts again from zero at once, and the walls back out.
         let past = [1.01 * p.pressure; 3];
-        let back = servo(&w, &p, &past, &counts, Some(&mut integral));
+        let back = servo(&w, &p, &geometry, &past, &counts, Some(&mut integral));
         approx::assert_relative_eq!(integral, -0.01 * p.pressure / 2000.0, max_relative = 1e-12);
         assert!(back.iter().all(|&v| v < 0.0), "{back:?}");
         // Without integral action it never grows.
@@ -1355,7 +1358,7 @@ mod tests {
             ..p.clone()
         };
         let mut integral = 0.0;
-        servo(&w, &q, &near, &counts, Some(&mut integral));
+        servo(&w, &q, &geometry, &near, &counts, Some(&mut integral));
         assert_eq!(integral, 0.0);
     }
 
