@@ -587,3 +587,38 @@ fn simplifying_a_world_keeps_each_body_on_its_old_vertices() {
     assert_eq!(w.shapes[1].vertices, before.shapes[1].vertices);
     assert_eq!(w.bodies[1].pos, before.bodies[1].pos);
 }
+
+/// A hard case from a `pack` preparation (docs/pack.md, "What kept the equilibrium from
+/// settling"): a small I_P particle (10 mm) wedged between the cylinder wall and two fixed
+/// neighbours, released from rest with no damping, walls at rest, no gravity. Nothing does
+/// work on it, so its energy audit must close: kinetic + elastic + friction stays what the
+/// overlaps stored at the start. It does not. Measured: the balance grows by 0.083 J in
+/// 20 000 steps while kinetic plus elastic energy stays below 7.6e-3 J; the cylinder's
+/// contact gives 0.069 J of it (its stored work, summed over the steps it lasts, falls to
+/// -0.069 J; the particle pairs' stays at +1e-4 J) and friction takes it. Where the particle
+/// bridges the concave wall, its overlap lies on facets apart from each other, and the one
+/// force `kn V / |S|` at their joint centroid is far from a gradient: its stiffness has a
+/// circulatory part of 18 % (a plane at the same depth: 2.8 %). Kept as a known failure
+/// until the law is fixed.
+#[test]
+#[ignore = "known failure: the linear law gives energy to a particle wedged against the cylinder, see the doc comment"]
+fn a_particle_wedged_against_the_cylinder_keeps_its_energy_audit() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/fixtures/wedged-on-cylinder.jsonl"
+    );
+    let text = std::fs::read(path).expect("fixture");
+    let mut w = shared::dem::state::read_world(&text[..]).expect("a valid state");
+    w.step();
+    let start = w.energy.balance();
+    let mut largest = 0.0f64;
+    for _ in 0..20_000 {
+        w.step();
+        largest = largest.max(w.energy.kinetic + w.energy.elastic.abs());
+    }
+    let drift = (w.energy.balance() - start).abs();
+    assert!(
+        drift <= 0.01 * largest,
+        "the audit drifted by {drift:.3e} J against at most {largest:.3e} J of energy"
+    );
+}
