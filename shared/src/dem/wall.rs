@@ -11,10 +11,19 @@
 //! among the facets in proportion to their volumes and passed to their nodes with the
 //! barycentric weights of each piece's centroid.
 //!
+//! That holds for each *spot*: the pieces on facets that touch each other (share a node; on a
+//! cylinder, neighbouring facets). A convex body inside a concave wall can touch it at spots
+//! apart from each other, and each spot then pushes as a contact of its own ([`spots`]); the
+//! contact reports their sum, with the couple that makes up their moment. Summing the spots
+//! into one `V / |S|` at their joint centroid is not the gradient of any energy, and it fed
+//! energy into particles wedged against a specimen's cylinder (docs/pack.md). Where two spots
+//! join, as a facet between them starts to overlap, the force jumps (from the two spots' sum to
+//! the joint spot's): that takes an overlap as deep as the wall's sagitta between them.
+//!
 //! A cylinder is the prism of `segments` flat facets inscribed in the circle (the sagitta,
 //! `radius (1 - cos(pi / segments))`, is the price: 0.03 % of the radius for 128 segments); only
-//! the facets within reach of a body are built. Its contact normal is the radius through the
-//! overlap's centroid, so that it makes no moment about the axis.
+//! the facets within reach of a body are built. Each spot's normal is the radius through its
+//! centroid, so that it makes no moment about the axis.
 
 use super::overlap::{
     overlap_half_space, overlap_half_space_within, overlap_parts, reach_along, Beyond, Overlap,
@@ -59,11 +68,67 @@ pub struct Wall {
 }
 
 /// One body's contact with a wall: the combined overlap, the wall's surface velocity at the
-/// contact point, and for facet walls how the force is shared among the nodes (weights sum to 1).
+/// contact point, for facet walls how the force is shared among the nodes (weights sum to 1),
+/// and the moment of an overlap in separate spots.
 pub struct WallHit {
     pub overlap: Overlap,
     pub velocity: Vec3,
     pub node_weights: Vec<(u32, f64)>,
+    /// For an overlap in separate spots (see [`spots`]): the moment of the spots' pushes about
+    /// `overlap.centroid`, per unit of normal stiffness (m^2; times `kn`, N m), on top of the
+    /// push at the centroid. Zero for one spot.
+    pub couple: Vec3,
+}
+
+/// One spot of a wall contact: the overlap of a run of adjacent facets' pieces and the normal
+/// it pushes along (`None`: the overlap's own).
+struct Spot {
+    overlap: Overlap,
+    normal: Option<Vec3>,
+}
+
+impl Spot {
+    fn normal(&self) -> Vec3 {
+        self.normal.unwrap_or_else(|| self.overlap.normal())
+    }
+}
+
+/// The wall's contact from its spots (at least one), as one overlap, its normal and a couple.
+///
+/// One spot: its overlap, pushing along its normal. Several: a convex body touches a concave
+/// wall (inside a cylinder) at spots apart from each other, and each pushes as a contact of its
+/// own, `kn d_g n_g` at its centroid `c_g` (`d_g = V_g / |S_g|`). Summing the spots' volumes
+/// and areas into one `V / |S|` at their joint centroid instead is not the gradient of any
+/// energy: a 10 mm particle wedged against the cylinder drew energy from it (docs/pack.md,
+/// "What kept the equilibrium from settling"). The result's depth is `|sum d_g n_g|`, its
+/// normal that sum's direction, its point the depth-weighted mean of the centroids, and the
+/// couple `sum (c_g - point) x d_g n_g` makes up the spots' moment.
+fn spots(spots: &[Spot]) -> (Overlap, Vec3, Vec3) {
+    if let [one] = spots {
+        let mut overlap = one.overlap;
+        if let Some(n) = one.normal {
+            overlap.area_b = -n * overlap.area_b.norm();
+        }
+        return (overlap, one.normal(), Vec3::zeros());
+    }
+    let depth: Vec3 = spots.iter().map(|g| g.normal() * g.overlap.depth()).sum();
+    let total: f64 = spots.iter().map(|g| g.overlap.depth()).sum();
+    let point: Vec3 = (spots.iter())
+        .map(|g| g.overlap.centroid * (g.overlap.depth() / total))
+        .sum();
+    let couple = (spots.iter())
+        .map(|g| (g.overlap.centroid - point).cross(&(g.normal() * g.overlap.depth())))
+        .sum();
+    let volume: f64 = spots.iter().map(|g| g.overlap.volume).sum();
+    let length = depth.norm();
+    let normal = depth / length;
+    let overlap = Overlap {
+        volume,
+        centroid: point,
+        // depth() = volume / |area_b| = |sum d_g n_g|, normal() along that sum.
+        area_b: -normal * (volume / length),
+    };
+    (overlap, normal, couple)
 }
 
 impl Wall {
@@ -117,6 +182,7 @@ impl Wall {
                     overlap: o,
                     velocity: self.velocity,
                     node_weights: Vec::new(),
+                    couple: Vec3::zeros(),
                 })
             }
             WallKind::Facets {
@@ -125,7 +191,6 @@ impl Wall {
                 node_velocities,
                 ..
             } => {
-                let mut sum = Sum::default();
                 let mut pieces = Vec::new();
                 let misses =
                     |lo: &Vec3, hi: &Vec3| (0..3).any(|k| lo[k] > b.hi[k] || b.lo[k] > hi[k]);
@@ -145,16 +210,71 @@ impl Wall {
                         continue;
                     }
                     if let Some((v, c, cap)) = facet_overlap(&q, &n, 2.0 * radius, s, b) {
-                        sum.add(v, &c, &cap);
-                        pieces.push((*t, q, v, c));
+                        pieces.push((*t, q, v, c, cap));
                     }
                 }
-                let overlap = sum.overlap()?;
+                // Spots: pieces on triangles that share a node, and so on (smallest piece
+                // index as the spot's label, in piece order).
+                let mut label: Vec<usize> = (0..pieces.len()).collect();
+                loop {
+                    let mut changed = false;
+                    for i in 0..pieces.len() {
+                        for j in i + 1..pieces.len() {
+                            let touch = pieces[i].0.iter().any(|n| pieces[j].0.contains(n));
+                            if touch && label[i] != label[j] {
+                                let l = label[i].min(label[j]);
+                                (label[i], label[j]) = (l, l);
+                                changed = true;
+                            }
+                        }
+                    }
+                    if !changed {
+                        break;
+                    }
+                }
+                let mut groups: Vec<(usize, Sum)> = Vec::new();
+                for (piece, &l) in pieces.iter().zip(&label) {
+                    let k = match groups.iter().position(|g| g.0 == l) {
+                        Some(k) => k,
+                        None => {
+                            groups.push((l, Sum::default()));
+                            groups.len() - 1
+                        }
+                    };
+                    groups[k].1.add(piece.2, &piece.3, &piece.4);
+                }
+                let found: Vec<(usize, Spot)> = (groups.iter())
+                    .filter_map(|(l, sum)| {
+                        let overlap = sum.overlap()?;
+                        Some((
+                            *l,
+                            Spot {
+                                overlap,
+                                normal: None,
+                            },
+                        ))
+                    })
+                    .collect();
+                if found.is_empty() {
+                    return None;
+                }
+                let list: Vec<Spot> = (found.iter())
+                    .map(|(_, g)| Spot {
+                        overlap: g.overlap,
+                        normal: g.normal,
+                    })
+                    .collect();
+                let (overlap, _, couple) = spots(&list);
+                // Each spot's share of the force, then each piece's of its spot's by volume.
+                let total: f64 = list.iter().map(|g| g.overlap.depth()).sum();
                 let mut velocity = self.velocity;
                 let mut node_weights = Vec::new();
-                for (t, q, v, c) in pieces {
-                    let share = v / overlap.volume;
-                    for (k, w) in barycentric(&q, &c).into_iter().enumerate() {
+                for ((t, q, v, c, _), l) in pieces.iter().zip(&label) {
+                    let Some((_, g)) = found.iter().find(|(k, _)| k == l) else {
+                        continue;
+                    };
+                    let share = g.overlap.depth() / total * (v / g.overlap.volume);
+                    for (k, w) in barycentric(q, c).into_iter().enumerate() {
                         let node = t[k];
                         velocity += node_velocities[node as usize] * (share * w);
                         node_weights.push((node, share * w));
@@ -164,6 +284,7 @@ impl Wall {
                     overlap,
                     velocity,
                     node_weights,
+                    couple,
                 })
             }
             WallKind::Cylinder {
@@ -225,7 +346,20 @@ impl Wall {
                     point + (e1 * a.cos() + e2 * a.sin()) * *r_cyl
                 };
                 let up = axis * *height;
-                let mut sum = Sum::default();
+                // Runs of adjacent facets with pieces, each a spot: (first facet, last facet,
+                // sum).
+                let mut runs: Vec<(i64, i64, Sum)> = Vec::new();
+                let mut add = |j: i64, v: f64, c: &Vec3, cap: &Vec3| match runs.last_mut() {
+                    Some(run) if run.1 == j - 1 => {
+                        run.1 = j;
+                        run.2.add(v, c, cap);
+                    }
+                    _ => {
+                        let mut sum = Sum::default();
+                        sum.add(v, c, cap);
+                        runs.push((j, j, sum));
+                    }
+                };
                 let mut near = corner(first);
                 for j in first..first + count as i64 {
                     let next = corner(j + 1);
@@ -241,34 +375,57 @@ impl Wall {
                     // is the overlap, without clipping B by the facet's prism.
                     let sides = side_planes(&q, &n);
                     match overlap_half_space_within(s, b, &n, n.dot(&q[0]), &sides) {
-                        Ok(Some(o)) => sum.add(o.volume, &o.centroid, &-o.area_b),
+                        Ok(Some(o)) => add(j, o.volume, &o.centroid, &-o.area_b),
                         Ok(None) => {}
                         Err(Beyond) => {
                             let depth = 2.0 * radius;
                             if let Some((v, c, cap)) =
                                 facet_overlap_with(&q, &n, &sides, depth, s, b)
                             {
-                                sum.add(v, &c, &cap);
+                                add(j, v, &c, &cap);
                             }
                         }
                     }
                 }
-                let mut overlap = sum.overlap()?;
-                let rel = overlap.centroid - point;
-                let radial = rel - axis * axis.dot(&rel);
-                let out = radial
-                    .try_normalize(0.0)
-                    .unwrap_or_else(|| -overlap.normal());
+                // All the way round: the last run and the first are one.
+                if count == n_seg && runs.len() > 1 {
+                    let (f0, l1) = (runs[0].0, runs[runs.len() - 1].1);
+                    if f0 == first && l1 == first + n_seg as i64 - 1 {
+                        let last = runs.pop().expect("two runs");
+                        let s0 = &mut runs[0].2;
+                        s0.volume += last.2.volume;
+                        s0.moment += last.2.moment;
+                        s0.cap += last.2.cap;
+                    }
+                }
                 // A cylinder pushes along its radius, through its axis. The facets' own
                 // normals would not: at a body off a facet's middle they make a moment about
                 // the axis, which nothing in a specimen between frictionless platens resists;
                 // the packing then turns until the facets' moments cancel, bumping over the
                 // facets as it goes (288 particles were seen turning at 0.06 rad/s).
-                overlap.area_b = out * overlap.area_b.norm();
+                let list: Vec<Spot> = (runs.iter())
+                    .filter_map(|(_, _, sum)| {
+                        let overlap = sum.overlap()?;
+                        let rel = overlap.centroid - point;
+                        let radial = rel - axis * axis.dot(&rel);
+                        let normal = -radial
+                            .try_normalize(0.0)
+                            .unwrap_or_else(|| -overlap.normal());
+                        Some(Spot {
+                            overlap,
+                            normal: Some(normal),
+                        })
+                    })
+                    .collect();
+                if list.is_empty() {
+                    return None;
+                }
+                let (overlap, normal, couple) = spots(&list);
                 Some(WallHit {
+                    velocity: self.velocity - normal * *radial_rate,
                     overlap,
-                    velocity: self.velocity + out * *radial_rate,
                     node_weights: Vec::new(),
+                    couple,
                 })
             }
         }
@@ -553,7 +710,7 @@ mod tests {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let rod = Shape::from_mesh(&crate::mesh::cuboid(Vec3::new(0.6, 0.1, 0.1))).unwrap();
-        let mut hits = 0;
+        let (mut hits, mut spots) = (0, 0);
         for (r_cyl, segments) in [(1.0, 32u32), (0.25, 16)] {
             let cyl = Wall::cylinder(Vec3::zeros(), Vec3::z(), r_cyl, 2.0, segments);
             let step = std::f64::consts::TAU / f64::from(segments);
@@ -589,22 +746,123 @@ mod tests {
                     facets.touch(&rod, &b, rod.radius),
                 );
                 assert_eq!(x.is_some(), y.is_some(), "at {p:?}");
-                if let (Some(x), Some(y)) = (x, y) {
+                if let (Some(hx), Some(hy)) = (x, y) {
                     hits += 1;
-                    let (x, y) = (x.overlap, y.overlap);
+                    let (x, y) = (hx.overlap, hy.overlap);
                     assert_relative_eq!(x.volume, y.volume, max_relative = 1e-9);
-                    assert_relative_eq!(x.centroid, y.centroid, epsilon = 1e-9);
-                    // The same area, but along the radius through the centroid, so the
-                    // force makes no moment about the axis (the facets' normal, their
-                    // area-weighted mean, strays from it where the overlap spans many
-                    // facets: by up to 17 degrees for these rods).
-                    assert_relative_eq!(x.area_b.norm(), y.area_b.norm(), epsilon = 1e-9);
-                    let radial = Vec3::new(x.centroid.x, x.centroid.y, 0.0).normalize();
-                    assert_relative_eq!(x.normal(), -radial, epsilon = 1e-12);
+                    // The same spots, but each pushing along the radius through its
+                    // centroid, so the force makes no moment about the axis (the facets'
+                    // normal, their area-weighted mean, strays from it where a spot spans
+                    // many facets: by up to 17 degrees for these rods).
+                    let f = x.normal() * x.depth();
+                    let about_axis = x.centroid.cross(&f) + hx.couple;
+                    assert!(about_axis.z.abs() < 1e-12, "{about_axis:?}");
+                    assert_eq!(hx.couple == Vec3::zeros(), hy.couple == Vec3::zeros());
+                    if hx.couple == Vec3::zeros() {
+                        // One spot: the facets' volume, centroid and area.
+                        assert_relative_eq!(x.centroid, y.centroid, epsilon = 1e-9);
+                        assert_relative_eq!(x.area_b.norm(), y.area_b.norm(), epsilon = 1e-9);
+                        let radial = Vec3::new(x.centroid.x, x.centroid.y, 0.0).normalize();
+                        assert_relative_eq!(x.normal(), -radial, epsilon = 1e-12);
+                    } else {
+                        spots += 1;
+                    }
                 }
             }
         }
         assert!(hits > 200, "{hits} contacts");
+        assert!(spots > 10, "{spots} contacts in separate spots");
+    }
+
+    /// The wall's push on a body (unit stiffness: the force is `depth x normal`) and its moment
+    /// about the body's centroid, at the body's pose moved by `q` (translation, then rotation
+    /// vector).
+    fn push(
+        wall: &Wall,
+        s: &Shape,
+        pos: &Vec3,
+        rot: &UnitQuaternion<f64>,
+        q: &[f64; 6],
+    ) -> [f64; 6] {
+        let p = pos + Vec3::new(q[0], q[1], q[2]);
+        let r = UnitQuaternion::from_scaled_axis(Vec3::new(q[3], q[4], q[5])) * rot;
+        let hit = wall
+            .touch(s, &s.posed(&p, &r, 1.0), s.radius)
+            .expect("a contact");
+        let f = hit.overlap.normal() * hit.overlap.depth();
+        let m = (hit.overlap.centroid - p).cross(&f) + hit.couple;
+        [f.x, f.y, f.z, m.x, m.y, m.z]
+    }
+
+    /// The largest antisymmetric (circulatory) part of the stiffness of [`push`], over its
+    /// largest entry (lengths in units of `size`, so translations and rotations compare).
+    fn circulation(
+        wall: &Wall,
+        s: &Shape,
+        pos: &Vec3,
+        rot: &UnitQuaternion<f64>,
+        size: f64,
+    ) -> f64 {
+        let h = 1e-7 * size;
+        let step = |k: usize| if k < 3 { h } else { h / size };
+        let unit = |k: usize| if k < 3 { 1.0 } else { 1.0 / size };
+        let mut k = [[0.0; 6]; 6];
+        for j in 0..6 {
+            let (mut up, mut down) = ([0.0; 6], [0.0; 6]);
+            up[j] = step(j);
+            down[j] = -step(j);
+            let (a, b) = (push(wall, s, pos, rot, &up), push(wall, s, pos, rot, &down));
+            for i in 0..6 {
+                k[i][j] = (a[i] - b[i]) / (2.0 * step(j)) * unit(i) * unit(j);
+            }
+        }
+        let pairs = || (0..6).flat_map(|i| (0..6).map(move |j| (i, j)));
+        let largest = pairs().map(|(i, j)| k[i][j].abs()).fold(0.0, f64::max);
+        let curl = (pairs())
+            .map(|(i, j)| (k[i][j] - k[j][i]).abs() / 2.0)
+            .fold(0.0, f64::max);
+        curl / largest
+    }
+
+    #[test]
+    fn a_plate_bridging_the_cylinder_pushes_at_both_ends_as_a_gradient() {
+        // A plate 0.6 long lying across the inside of a tube of radius 1 touches it at its two
+        // ends, facets apart (the middle clears the wall by the chord's sagitta, 0.045). Each
+        // end pushes as a contact of its own, along the radius: the push is then nearly a
+        // gradient (4.9 % circulatory here, the linear law's own for the tilted plate's
+        // edges). One push of the summed volume and area at the joint centroid was not: 52 %,
+        // and it fed energy into a particle wedged against a pack specimen's cylinder
+        // (docs/pack.md, "What kept the equilibrium from settling").
+        let plate = Shape::from_mesh(&crate::mesh::cuboid(Vec3::new(0.3, 0.02, 0.1))).unwrap();
+        let cyl = Wall::cylinder(Vec3::new(0.0, 0.0, -1.0), Vec3::z(), 1.0, 2.0, 128);
+        let inscribed = (std::f64::consts::PI / 128.0).cos();
+        // Tilted and turned a little, so the two ends sink by different depths.
+        // (The shape's vertices are in its principal frame: `frame_in_mesh` turns them back
+        // to the mesh's axes.)
+        let rot = UnitQuaternion::from_scaled_axis(Vec3::new(0.5, 0.3, 0.02)) * plate.frame_in_mesh;
+        let mut pos = Vec3::new(0.0, inscribed - 0.067, 0.0);
+        // Pushed out until both ends touch (the couple of two spots), then 1e-4 further.
+        while (cyl.touch(&plate, &plate.posed(&pos, &rot, 1.0), plate.radius))
+            .is_none_or(|hit| hit.couple == Vec3::zeros())
+        {
+            pos.y += 1e-5;
+            assert!(pos.y < 1.0, "no pose with both ends on the wall");
+        }
+        pos.y += 1e-4;
+        let hit = cyl
+            .touch(&plate, &plate.posed(&pos, &rot, 1.0), plate.radius)
+            .unwrap();
+        assert!(hit.couple.norm() > 0.0, "two spots, a couple");
+        // The pushes are radial: no moment about the axis.
+        let f = hit.overlap.normal() * hit.overlap.depth();
+        let about_axis = (hit.overlap.centroid - Vec3::new(0.0, 0.0, -1.0)).cross(&f) + hit.couple;
+        assert!(
+            about_axis.z.abs() < 1e-12,
+            "moment about the axis {:e}",
+            about_axis.z
+        );
+        let c = circulation(&cyl, &plate, &pos, &rot, 0.6);
+        assert!(c < 0.1, "circulatory part {c:.3}");
     }
 
     #[test]

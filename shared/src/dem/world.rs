@@ -324,6 +324,9 @@ struct Touch {
     slip_energy: f64,
     /// For facet walls: the share of the force each node carries.
     node_weights: Vec<(u32, f64)>,
+    /// For a wall contact in separate spots: the moment of the spots' pushes about the
+    /// contact point, on top of `point x force` ([`super::wall::WallHit::couple`] times `kn`).
+    couple: Vec3,
     /// Velocity of the partner's surface at the contact point.
     wall_velocity: Vec3,
     /// The overlap's structure, to keep for the next step: `Found::Kept` is the one the contact
@@ -606,6 +609,7 @@ impl World {
             force: n * fn_ + shear,
             slip_energy,
             node_weights: Vec::new(),
+            couple: Vec3::zeros(),
             wall_velocity: va,
             kept: Found::None,
             at: 0,
@@ -751,6 +755,11 @@ impl World {
                 this.material.wall_friction,
             );
             t.node_weights = hit.node_weights;
+            if hit.couple != Vec3::zeros() {
+                // The spots' moment does work as the body turns (the wall does not).
+                t.couple = hit.couple * this.material.kn;
+                t.contact.potential -= t.couple.dot(&b.omega()) * this.dt;
+            }
             Some(t)
         });
         touches.extend(&wall_touches);
@@ -771,7 +780,7 @@ impl World {
             let mut m = Vec3::zeros();
             for &e in &ends[start[i] as usize..start[i + 1] as usize] {
                 let t = &touches[(e >> 1) as usize];
-                let arm = (t.contact.point - b.pos).cross(&t.force);
+                let arm = (t.contact.point - b.pos).cross(&t.force) + t.couple;
                 if e & 1 == 0 {
                     f += t.force;
                     m += arm;
