@@ -17,8 +17,10 @@
 //! contact reports their sum, with the couple that makes up their moment. Summing the spots
 //! into one `V / |S|` at their joint centroid is not the gradient of any energy, and it fed
 //! energy into particles wedged against a specimen's cylinder (docs/pack.md). Where two spots
-//! join, as a facet between them starts to overlap, the force jumps (from the two spots' sum to
-//! the joint spot's): that takes an overlap as deep as the wall's sagitta between them.
+//! join, as a facet between them starts to overlap when the body presses or slides, the force
+//! jumps from the two spots' sum to the joint spot's: the particle of
+//! `tests/fixtures/wedged-on-cylinder.jsonl` did so 220 times in 20 000 steps, and its audit
+//! still drifts (a known failure).
 //!
 //! A cylinder is the prism of `segments` flat facets inscribed in the circle (the sagitta,
 //! `radius (1 - cos(pi / segments))`, is the price: 0.03 % of the radius for 128 segments); only
