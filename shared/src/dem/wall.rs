@@ -215,66 +215,41 @@ impl Wall {
                         pieces.push((*t, q, v, c, cap));
                     }
                 }
-                // Spots: pieces on triangles that share a node, and so on (smallest piece
-                // index as the spot's label, in piece order).
-                let mut label: Vec<usize> = (0..pieces.len()).collect();
-                loop {
-                    let mut changed = false;
-                    for i in 0..pieces.len() {
-                        for j in i + 1..pieces.len() {
-                            let touch = pieces[i].0.iter().any(|n| pieces[j].0.contains(n));
-                            if touch && label[i] != label[j] {
-                                let l = label[i].min(label[j]);
-                                (label[i], label[j]) = (l, l);
-                                changed = true;
-                            }
-                        }
-                    }
-                    if !changed {
-                        break;
-                    }
-                }
-                let mut groups: Vec<(usize, Sum)> = Vec::new();
+                // Spots: pieces on triangles that share a node, and so on; each spot's pieces
+                // summed in piece order, and `spot_of` each piece's spot in `list`.
+                let triangles: Vec<[u32; 3]> = pieces.iter().map(|p| p.0).collect();
+                let label = connected(&triangles);
+                let mut sums: Vec<(usize, Sum)> = Vec::new();
                 for (piece, &l) in pieces.iter().zip(&label) {
-                    let k = match groups.iter().position(|g| g.0 == l) {
-                        Some(k) => k,
-                        None => {
-                            groups.push((l, Sum::default()));
-                            groups.len() - 1
-                        }
-                    };
-                    groups[k].1.add(piece.2, &piece.3, &piece.4);
+                    if !sums.iter().any(|g| g.0 == l) {
+                        sums.push((l, Sum::default()));
+                    }
+                    let k = sums.iter().position(|g| g.0 == l).expect("pushed");
+                    sums[k].1.add(piece.2, &piece.3, &piece.4);
                 }
-                let found: Vec<(usize, Spot)> = (groups.iter())
-                    .filter_map(|(l, sum)| {
-                        let overlap = sum.overlap()?;
-                        Some((
-                            *l,
-                            Spot {
-                                overlap,
-                                normal: None,
-                            },
-                        ))
-                    })
-                    .collect();
-                if found.is_empty() {
+                let (mut labels, mut list) = (Vec::new(), Vec::new());
+                for (l, sum) in &sums {
+                    if let Some(overlap) = sum.overlap() {
+                        labels.push(*l);
+                        list.push(Spot {
+                            overlap,
+                            normal: None,
+                        });
+                    }
+                }
+                if list.is_empty() {
                     return None;
                 }
-                let list: Vec<Spot> = (found.iter())
-                    .map(|(_, g)| Spot {
-                        overlap: g.overlap,
-                        normal: g.normal,
-                    })
-                    .collect();
                 let (overlap, _, couple) = spots(&list);
                 // Each spot's share of the force, then each piece's of its spot's by volume.
                 let total: f64 = list.iter().map(|g| g.overlap.depth()).sum();
                 let mut velocity = self.velocity;
                 let mut node_weights = Vec::new();
                 for ((t, q, v, c, _), l) in pieces.iter().zip(&label) {
-                    let Some((_, g)) = found.iter().find(|(k, _)| k == l) else {
+                    let Some(k) = labels.iter().position(|k| k == l) else {
                         continue;
                     };
+                    let g = &list[k];
                     let share = g.overlap.depth() / total * (v / g.overlap.volume);
                     for (k, w) in barycentric(q, c).into_iter().enumerate() {
                         let node = t[k];
@@ -394,10 +369,7 @@ impl Wall {
                     let (f0, l1) = (runs[0].0, runs[runs.len() - 1].1);
                     if f0 == first && l1 == first + n_seg as i64 - 1 {
                         let last = runs.pop().expect("two runs");
-                        let s0 = &mut runs[0].2;
-                        s0.volume += last.2.volume;
-                        s0.moment += last.2.moment;
-                        s0.cap += last.2.cap;
+                        runs[0].2.absorb(&last.2);
                     }
                 }
                 // A cylinder pushes along its radius, through its axis. The facets' own
@@ -493,6 +465,13 @@ impl Sum {
         self.cap += cap;
     }
 
+    /// Adds another sum's pieces.
+    fn absorb(&mut self, other: &Sum) {
+        self.volume += other.volume;
+        self.moment += other.moment;
+        self.cap += other.cap;
+    }
+
     fn overlap(&self) -> Option<Overlap> {
         // A body wholly behind the facets has no cap: it has left the container, and no
         // direction to push it back is right.
@@ -504,6 +483,28 @@ impl Sum {
             centroid: self.moment / self.volume,
             area_b: -self.cap,
         })
+    }
+}
+
+/// For triangles given by their node indices: each one's component label (the smallest index of
+/// the triangles joined to it through shared nodes).
+fn connected(triangles: &[[u32; 3]]) -> Vec<usize> {
+    let mut label: Vec<usize> = (0..triangles.len()).collect();
+    loop {
+        let mut changed = false;
+        for i in 0..triangles.len() {
+            for j in i + 1..triangles.len() {
+                let touch = triangles[i].iter().any(|n| triangles[j].contains(n));
+                if touch && label[i] != label[j] {
+                    let l = label[i].min(label[j]);
+                    (label[i], label[j]) = (l, l);
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            return label;
+        }
     }
 }
 
