@@ -8,6 +8,8 @@
 //!   tangent plane every step (direction projected, magnitude kept), Coulomb limit `mu F_n`;
 //! - local non-viscous damping (PFC): `F_i -= alpha |F_i| sign(v_i)` per component, moments
 //!   likewise;
+//! - walls move first in a step, by the velocities set before it, then the contacts see them
+//!   there (a wall's velocity set between steps acts on this step's forces);
 //! - time integration: leapfrog (central differences) for translation; for rotation the
 //!   world-frame angular momentum takes the torque kick, and the orientation advances by the
 //!   symplectic splitting of the free rigid rotor into rotations about the principal axes
@@ -327,8 +329,10 @@ struct Touch {
     /// For a wall contact in separate spots: the moment of the spots' pushes about the
     /// contact point, on top of `point x force` ([`super::wall::WallHit::couple`] times `kn`).
     couple: Vec3,
-    /// Velocity of the partner's surface at the contact point.
-    wall_velocity: Vec3,
+    /// Work the partner's surface did on the body over the step, J: the mean of the last and
+    /// this step's force over the surface's displacement (as the contact's stored work counts
+    /// it). Summed for walls only.
+    wall_work: f64,
     /// The overlap's structure, to keep for the next step: `Found::Kept` is the one the contact
     /// kept, at `at` in the last step's list.
     kept: Found,
@@ -578,6 +582,7 @@ impl World {
             }
             None => flat_potential(fn_, depth),
         };
+        let last_force = last.map_or(Vec3::zeros(), |c| c.normal * c.normal_force + c.shear);
         // Carry the stored shear force onto the new tangent plane, keeping its magnitude.
         let old = last.map_or(Vec3::zeros(), |c| c.shear);
         let mut shear = old - n * n.dot(&old);
@@ -603,14 +608,15 @@ impl World {
             shear,
             sliding,
         };
+        let force = n * fn_ + shear;
         Touch {
             key,
             contact,
-            force: n * fn_ + shear,
+            force,
             slip_energy,
             node_weights: Vec::new(),
             couple: Vec3::zeros(),
-            wall_velocity: va,
+            wall_work: 0.5 * (last_force + force).dot(&va) * self.dt,
             kept: Found::None,
             at: 0,
         }
@@ -633,6 +639,13 @@ impl World {
                 secs
             }
         };
+        // The walls move first, so this step's contacts see each wall's displacement since
+        // the last step's forces at the velocity it moved with (a servo sets the velocity
+        // between steps; moved after the forces, the contacts saw the next step's velocity
+        // against the bodies' last, and the stored work drifted by each change of speed).
+        for w in &mut self.walls {
+            w.advance(dt);
+        }
         let mut posed = std::mem::take(&mut self.posed);
         self.pose_all(&mut posed);
         let par = parallel(self.bodies.len());
@@ -800,15 +813,13 @@ impl World {
             w.clear_forces();
         }
         let mut elastic = 0.0;
-        let mut wall_power = 0.0;
+        let mut wall_work = 0.0;
         let mut contact_force = 0.0;
         for t in &touches {
             contact_force += t.force.norm();
             if let Partner::Wall(w) = t.key.0 {
                 self.walls[w as usize].push(&-t.force, &t.node_weights);
-                // The wall pushes the body with t.force while its surface moves at the
-                // velocity the shear spring saw.
-                wall_power += t.force.dot(&t.wall_velocity);
+                wall_work += t.wall_work;
             }
             elastic += t.contact.elastic_energy(&self.material);
             self.energy.friction += t.slip_energy;
@@ -833,7 +844,7 @@ impl World {
         }
         self.kept_buffer = last_kept.into_buffer();
         self.energy.elastic = elastic;
-        self.energy.wall_work += wall_power * dt;
+        self.energy.wall_work += wall_work;
         self.times.assembly += lap();
         // Damping, kick, drift; per body in parallel, the sums over bodies in body order.
         let alpha = self.material.damping;
@@ -873,9 +884,6 @@ impl World {
             damping += d;
             gravity_work += w;
             kinetic += k;
-        }
-        for w in &mut self.walls {
-            w.advance(dt);
         }
         self.unbalanced = if self.contacts.is_empty() || free == 0 {
             f64::INFINITY
