@@ -20,7 +20,7 @@
 //!    unbalanced-force ratio is below `prep_unbalanced` or the porosity has changed by less than
 //!    1e-4 over the last 10 000 steps (frictionless packings keep sliding at the target).
 //! 4. **Equilibrium.** The particle friction becomes the material's (the damping stays
-//!    `prep_damping`: the material's 0.3 let a few bodies vibrate for 100 000 steps), and each wall
+//!    `prep_damping`, by default the material's 0.3), and each wall
 //!    follows its own servo (resting while within half the tolerance) until every wall stress
 //!    is within `tolerance` of `p` and the unbalanced-force ratio is below `unbalanced`. The
 //!    walls then stop, the true inertia comes back, and the state is the specimen.
@@ -153,7 +153,7 @@ impl Default for Params {
             porosity: 0.4,
             pressure: 100e3,
             prep_friction: 0.1,
-            prep_damping: 0.7,
+            prep_damping: 0.3,
             material: Material::default(),
             seed: 1,
             safety: 0.2,

@@ -118,7 +118,7 @@ struct Cli {
           value_parser = parse_limits)]
     void_ratio_limits: Option<(f64, f64)>,
     /// Local damping while preparing (compaction and equilibrium; the state gets --damping)
-    #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     prep_damping: f64,
     /// The specimen's particle friction (the paper's 0.5)
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
