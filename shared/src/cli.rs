@@ -67,6 +67,20 @@ pub fn solid(obj: &ObjObject) -> anyhow::Result<crate::mass::MassProps> {
         .topology(Some(&obj.face_lines))
         .with_context(what)?;
     let props = crate::mass::MassProps::of(&obj.mesh);
+    // Flat: no volume against the cube of its extent, to round-off.
+    let v = &obj.mesh.vertices;
+    let far = crate::math::Vec3::repeat(f64::INFINITY);
+    let (lo, hi) = v
+        .iter()
+        .fold((far, -far), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
+    let extent = (hi - lo).amax();
+    if props.volume.abs() <= 1e-12 * extent.powi(3) {
+        anyhow::bail!(
+            "{}: encloses no volume ({:e}); a particle must be a solid",
+            what(),
+            props.volume
+        );
+    }
     if props.volume.is_nan() || props.volume <= 0.0 {
         anyhow::bail!(
             "{}: the faces point inwards (volume {:e}); faces must be counter-clockwise seen from outside",

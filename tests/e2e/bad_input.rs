@@ -118,7 +118,13 @@ fn roundness_rejects_inside_out_and_open_meshes() {
 fn roundness_rejects_a_flat_object() {
     // A closed but flat double-sided square: zero volume.
     let flat = "o flat\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 4 3 2 1\n";
-    fails("roundness", &[], flat.as_bytes(), 1, &["'flat'"]);
+    fails(
+        "roundness",
+        &[],
+        flat.as_bytes(),
+        1,
+        &["'flat'", "encloses no volume"],
+    );
 }
 
 #[test]

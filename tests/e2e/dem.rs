@@ -1,6 +1,6 @@
 //! The dem tool: restart equality, thread determinism, bad scenes.
 
-use super::{fixture, ok, repo_file, run, run_env};
+use super::{fixture, inside_out_cube, ok, repo_file, run, run_env};
 
 #[test]
 fn restart_equals_the_uninterrupted_run_byte_for_byte() {
@@ -354,8 +354,24 @@ fn peer_scenes_take_shared_templates() {
             "0",
         ],
         b"",
-        &["object at line 1"],
+        &["'flat'", "line 1", "encloses no volume"],
     );
+    // An open mesh and an inside-out one are not solids: named, with the line.
+    let open = temp_file(
+        "open.obj",
+        b"o open\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n",
+    );
+    let inside_out = temp_file("inside-out.obj", &inside_out_cube());
+    for (file, needles) in [
+        (&open, ["'open'", "boundary edge"]),
+        (&inside_out, ["'cube'", "point inwards"]),
+    ] {
+        let path = file.to_str().unwrap();
+        let args = ["--import-peer", scene, "--templates", path, "--steps", "0"];
+        let mut all = vec![path];
+        all.extend(needles);
+        fails(&args, b"", &all);
+    }
     let out = run("dem", &["--templates", templates, "--steps", "0"], b"");
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--import-peer"));

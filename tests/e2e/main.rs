@@ -88,3 +88,15 @@ pub fn fixture(name: &str) -> Vec<u8> {
     ))
     .expect("fixture exists")
 }
+
+/// The fixture cube with every face turned inside out.
+pub fn inside_out_cube() -> Vec<u8> {
+    let text = String::from_utf8(fixture("cube.obj")).unwrap();
+    text.lines()
+        .map(|l| match l.strip_prefix("f ") {
+            Some(f) => format!("f {}\n", f.split(' ').rev().collect::<Vec<_>>().join(" ")),
+            None => format!("{l}\n"),
+        })
+        .collect::<String>()
+        .into_bytes()
+}

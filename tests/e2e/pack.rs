@@ -1,24 +1,12 @@
 //! The `pack` tool: broken input and arguments, and a small specimen that must meet the
 //! issue's final-state conditions (with the same bytes on 1 and 2 threads), in a cylinder and a box.
 
-use super::{fails, fixture, run, run_env};
+use super::{fails, fixture, inside_out_cube, run, run_env};
 
 /// Runs pack on bad input: exit 1 (2 for usage), the message holds every needle, no output.
 fn rejects(args: &[&str], stdin: &[u8], code: i32, needles: &[&str]) {
     let out = fails("pack", args, stdin, code, needles);
     assert!(out.is_empty(), "pack {args:?} wrote output on failure");
-}
-
-/// The fixture cube with every face turned inside out.
-fn inside_out_cube() -> Vec<u8> {
-    let text = String::from_utf8(fixture("cube.obj")).unwrap();
-    text.lines()
-        .map(|l| match l.strip_prefix("f ") {
-            Some(f) => format!("f {}\n", f.split(' ').rev().collect::<Vec<_>>().join(" ")),
-            None => format!("{l}\n"),
-        })
-        .collect::<String>()
-        .into_bytes()
 }
 
 #[test]

@@ -165,6 +165,8 @@ fn read_templates(
     objects
         .iter()
         .map(|o| {
+            // A closed, outward mesh first (its hull would hide an open or inside-out one).
+            cli::solid(o).with_context(|| path.display().to_string())?;
             shared::dem::shape::Shape::from_mesh(&o.mesh)
                 .map_err(|e| anyhow::anyhow!("{}: object at line {}: {e}", path.display(), o.line))
         })
