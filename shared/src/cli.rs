@@ -68,12 +68,7 @@ pub fn solid(obj: &ObjObject) -> anyhow::Result<crate::mass::MassProps> {
         .with_context(what)?;
     let props = crate::mass::MassProps::of(&obj.mesh);
     // Flat: no volume against the cube of its extent, to round-off.
-    let v = &obj.mesh.vertices;
-    let far = crate::math::Vec3::repeat(f64::INFINITY);
-    let (lo, hi) = v
-        .iter()
-        .fold((far, -far), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
-    let extent = (hi - lo).amax();
+    let extent = crate::math::extent(&obj.mesh.vertices);
     if props.volume.abs() <= 1e-12 * extent.powi(3) {
         anyhow::bail!(
             "{}: encloses no volume ({:e}); a particle must be a solid",

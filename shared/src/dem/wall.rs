@@ -216,7 +216,7 @@ impl Wall {
                     }
                 }
                 // Spots: pieces on triangles that share a node, and so on; each spot's pieces
-                // summed in piece order, and `spot_of` each piece's spot in `list`.
+                // summed in piece order (`labels[k]`: the label of `list[k]`'s pieces).
                 let triangles: Vec<[u32; 3]> = pieces.iter().map(|p| p.0).collect();
                 let label = connected(&triangles);
                 let mut sums: Vec<(usize, Sum)> = Vec::new();

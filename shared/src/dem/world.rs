@@ -331,7 +331,7 @@ struct Touch {
     couple: Vec3,
     /// Work the partner's surface did on the body over the step, J: the mean of the last and
     /// this step's force over the surface's displacement (as the contact's stored work counts
-    /// it). Summed for walls only.
+    /// it). Set for wall contacts only.
     wall_work: f64,
     /// The overlap's structure, to keep for the next step: `Found::Kept` is the one the contact
     /// kept, at `at` in the last step's list.
@@ -582,7 +582,6 @@ impl World {
             }
             None => flat_potential(fn_, depth),
         };
-        let last_force = last.map_or(Vec3::zeros(), |c| c.normal * c.normal_force + c.shear);
         // Carry the stored shear force onto the new tangent plane, keeping its magnitude.
         let old = last.map_or(Vec3::zeros(), |c| c.shear);
         let mut shear = old - n * n.dot(&old);
@@ -608,15 +607,14 @@ impl World {
             shear,
             sliding,
         };
-        let force = n * fn_ + shear;
         Touch {
             key,
             contact,
-            force,
+            force: n * fn_ + shear,
             slip_energy,
             node_weights: Vec::new(),
             couple: Vec3::zeros(),
-            wall_work: 0.5 * (last_force + force).dot(&va) * self.dt,
+            wall_work: 0.0,
             kept: Found::None,
             at: 0,
         }
@@ -760,13 +758,16 @@ impl World {
             let shape = &this.shapes[b.shape as usize];
             let hit = wall.touch(shape, &posed[i as usize], shape.radius * b.scale)?;
             let key = (Partner::Wall(w), i);
+            let last = this.contacts.get(&key);
             let mut t = this.touch(
                 key,
-                this.contacts.get(&key),
+                last,
                 &hit.overlap,
                 hit.velocity,
                 this.material.wall_friction,
             );
+            let last_force = last.map_or(Vec3::zeros(), |c| c.normal * c.normal_force + c.shear);
+            t.wall_work = 0.5 * (last_force + t.force).dot(&hit.velocity) * this.dt;
             t.node_weights = hit.node_weights;
             if hit.couple != Vec3::zeros() {
                 // The spots' moment does work as the body turns (the wall does not).
