@@ -8,7 +8,7 @@
 //! Roundness is Barrett's 3D roundness (the paper's Eq. 7): `S3D = (36 pi V^2)^(1/3) / A`,
 //! the area of the sphere of equal volume over the particle's area; 1 for a sphere.
 
-use crate::math::{Mat3, Vec3};
+use crate::math::{basis, clip, extent, Mat3, Vec3};
 use crate::mesh::PolyMesh;
 
 /// Volume, surface area, centroid and inertia tensor (about the centroid, unit density) of a
@@ -109,6 +109,54 @@ pub fn s3d(volume: f64, area: f64) -> f64 {
     } else {
         0.0
     }
+}
+
+/// Volume of the part of a convex polyhedron inside every half-space `n . x <= d` of `planes`
+/// (each `n` a unit vector). The polyhedron is given by its faces, convex polygons whose
+/// vertices run counter-clockwise seen from outside. Each plane in turn cuts every face and
+/// closes the cut with a cap on the plane (the points the cut leaves on it, in angular order);
+/// the volume is the sum of the tetrahedra of the faces' fans about the vertex mean.
+pub fn clipped_volume(faces: &[Vec<Vec3>], planes: &[(Vec3, f64)]) -> f64 {
+    let points: Vec<Vec3> = faces.iter().flatten().copied().collect();
+    // Points within this of a plane lie on it (the cut's own points are there to round-off).
+    let tol = 1e-9 * extent(&points);
+    let mut faces = faces.to_vec();
+    let (mut tmp, mut dist) = (Vec::new(), Vec::new());
+    for (n, d) in planes {
+        if faces.iter().flatten().all(|p| n.dot(p) <= *d) {
+            continue;
+        }
+        let mut cap = Vec::new();
+        faces.retain_mut(|poly| {
+            let kept = clip(poly, &mut tmp, &mut dist, n, *d);
+            if kept {
+                cap.extend(poly.iter().filter(|p| n.dot(p) >= d - tol));
+            }
+            kept
+        });
+        if faces.is_empty() {
+            return 0.0;
+        }
+        if cap.len() >= 3 {
+            let c = cap.iter().sum::<Vec3>() / cap.len() as f64;
+            let (e1, e2) = basis(n);
+            let angle = |p: &Vec3| (p - c).dot(&e2).atan2((p - c).dot(&e1));
+            cap.sort_by(|a, b| angle(a).total_cmp(&angle(b)));
+            faces.push(cap);
+        }
+    }
+    let all: Vec<&Vec3> = faces.iter().flatten().collect();
+    let r = all.iter().copied().sum::<Vec3>() / all.len() as f64;
+    faces
+        .iter()
+        .map(|f| {
+            let a = f[0] - r;
+            f.windows(2)
+                .skip(1)
+                .map(|w| a.dot(&(w[0] - r).cross(&(w[1] - r))) / 6.0)
+                .sum::<f64>()
+        })
+        .sum()
 }
 
 #[cfg(test)]
@@ -272,5 +320,80 @@ mod tests {
             c.face_verts[s..e].reverse();
         }
         assert!(MassProps::of(&c).volume < 0.0);
+    }
+
+    fn polygons(m: &PolyMesh) -> Vec<Vec<Vec3>> {
+        (0..m.face_count())
+            .map(|f| m.face(f).iter().map(|&i| m.vertices[i as usize]).collect())
+            .collect()
+    }
+
+    #[test]
+    fn clipping_a_cube_by_axis_planes_leaves_the_box_between() {
+        let c = polygons(&cube(1.0));
+        assert_relative_eq!(clipped_volume(&c, &[]), 8.0, epsilon = 1e-12);
+        let x = (Vec3::x(), 0.5);
+        let y = (Vec3::y(), -0.5);
+        assert_relative_eq!(clipped_volume(&c, &[x]), 6.0, epsilon = 1e-12);
+        assert_relative_eq!(clipped_volume(&c, &[x, y]), 1.5, epsilon = 1e-12);
+        let z = (-Vec3::z(), 0.0);
+        assert_relative_eq!(clipped_volume(&c, &[x, y, z]), 0.75, epsilon = 1e-12);
+        // A plane beyond the cube changes nothing; one with the cube beyond it leaves nothing.
+        assert_relative_eq!(
+            clipped_volume(&c, &[(Vec3::x(), 2.0)]),
+            8.0,
+            epsilon = 1e-12
+        );
+        assert_eq!(clipped_volume(&c, &[x, (-Vec3::x(), -0.6)]), 0.0);
+    }
+
+    #[test]
+    fn clipping_at_a_face_or_through_vertices_is_exact() {
+        let c = polygons(&cube(1.0));
+        // On a face: the cube is kept whole, or only that face (no volume) is left.
+        assert_relative_eq!(
+            clipped_volume(&c, &[(Vec3::x(), 1.0)]),
+            8.0,
+            epsilon = 1e-12
+        );
+        assert!(clipped_volume(&c, &[(Vec3::x(), -1.0)]).abs() < 1e-12);
+        // Through three corners: the corner tetrahedron of volume 8/6, and the rest.
+        let n = Vec3::new(1.0, 1.0, 1.0).normalize();
+        let d = -n.dot(&Vec3::new(1.0, -1.0, -1.0));
+        assert_relative_eq!(clipped_volume(&c, &[(n, -d)]), 8.0 / 6.0, epsilon = 1e-12);
+        assert_relative_eq!(
+            clipped_volume(&c, &[(-n, d)]),
+            8.0 - 8.0 / 6.0,
+            epsilon = 1e-12
+        );
+        // Through the middle along a diagonal: the two halves.
+        let m = Vec3::new(1.0, -1.0, 0.0).normalize();
+        assert_relative_eq!(clipped_volume(&c, &[(m, 0.0)]), 4.0, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn the_two_sides_of_any_plane_add_up_to_the_solid() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for m in [octahedron(), tetrahedron(), cube(0.3)] {
+            let faces = polygons(&m);
+            let whole = MassProps::of(&m).volume;
+            for _ in 0..200 {
+                let n = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                )
+                .normalize();
+                let d = rng.random_range(-0.8..0.8);
+                let cut = (n, rng.random_range(-0.5..0.5) + n.z);
+                let a = clipped_volume(&faces, &[(n, d), cut]);
+                let b = clipped_volume(&faces, &[(-n, -d), cut]);
+                let both = clipped_volume(&faces, &[cut]);
+                assert!(a >= -1e-12 && b >= -1e-12, "{a} {b}");
+                assert_relative_eq!(a + b, both, epsilon = 1e-12 * whole.max(1.0));
+                assert!(both <= whole + 1e-12);
+            }
+        }
     }
 }

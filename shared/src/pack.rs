@@ -31,7 +31,7 @@ use crate::dem::gjk;
 use crate::dem::shape::Shape;
 use crate::dem::wall::{Wall, WallKind};
 use crate::dem::world::{Material, Partner, World};
-use crate::mass::equivalent_diameter;
+use crate::mass::{clipped_volume, equivalent_diameter};
 use crate::math::Vec3;
 use nalgebra::{Quaternion, UnitQuaternion};
 use rand::{Rng, SeedableRng};
@@ -858,6 +858,80 @@ pub fn porosity(w: &World) -> f64 {
     porosity_of(&bounds(w), solid_volume(w))
 }
 
+/// The container's core: the prism left when every wall moves `layer` inwards, as half-spaces
+/// `n . x <= d`, and its volume; `None` when nothing is left. A cylinder's core has the sides
+/// of its facet polygon (any orientation: the sides only bound a region).
+fn core(b: &Bounds, layer: f64) -> Option<(Vec<(Vec3, f64)>, f64)> {
+    let height = b.height() - 2.0 * layer;
+    let mut planes = vec![
+        (-Vec3::z(), -(b.bottom + layer)),
+        (Vec3::z(), b.top - layer),
+    ];
+    let area = match b.section {
+        Section::Circle { radius, segments } => {
+            let n = f64::from(segments);
+            let apothem = radius * (PI / n).cos() - layer;
+            planes.extend((0..segments).map(|k| {
+                let a = 2.0 * PI * f64::from(k) / n;
+                (Vec3::new(a.cos(), a.sin(), 0.0), apothem)
+            }));
+            (apothem > 0.0).then(|| n * apothem * apothem * (PI / n).tan())
+        }
+        Section::Rect { x, y } => {
+            planes.extend([
+                (-Vec3::x(), -(x[0] + layer)),
+                (Vec3::x(), x[1] - layer),
+                (-Vec3::y(), -(y[0] + layer)),
+                (Vec3::y(), y[1] - layer),
+            ]);
+            let (wx, wy) = (x[1] - x[0] - 2.0 * layer, y[1] - y[0] - 2.0 * layer);
+            (wx > 0.0 && wy > 0.0).then_some(wx * wy)
+        }
+    }?;
+    (height > 0.0).then_some((planes, area * height))
+}
+
+/// Porosity of the container's core, `layer` in from every wall ([`core`]): the bodies' volume
+/// inside it (each straddling body clipped exactly, [`clipped_volume`]) over its volume.
+/// Away from the walls, where particles pack looser against a flat surface, it is the bulk
+/// porosity of the material, the same for a small sample as for the specimen. `None` when the
+/// layer leaves no core. `w` is made by [`cloud`].
+pub fn core_porosity(w: &World, layer: f64) -> Option<f64> {
+    let (planes, volume) = core(&bounds(w), layer)?;
+    let corner = |n: &Vec3, lo: &Vec3, hi: &Vec3| {
+        Vec3::new(
+            if n.x > 0.0 { hi.x } else { lo.x },
+            if n.y > 0.0 { hi.y } else { lo.y },
+            if n.z > 0.0 { hi.z } else { lo.z },
+        )
+    };
+    let solid: f64 = w
+        .bodies
+        .iter()
+        .map(|body| {
+            let s = &w.shapes[body.shape as usize];
+            let posed = s.posed(&body.pos, &body.rot, body.scale);
+            let (lo, hi) = (posed.lo, posed.hi);
+            // Wholly beyond one plane (its box is), or wholly inside all of them.
+            if (planes.iter()).any(|(n, d)| n.dot(&corner(&-n, &lo, &hi)) >= *d) {
+                return 0.0;
+            }
+            if (planes.iter()).all(|(n, d)| n.dot(&corner(n, &lo, &hi)) <= *d) {
+                return s.volume * body.scale.powi(3);
+            }
+            let faces: Vec<Vec<Vec3>> = (0..s.face_count())
+                .map(|f| {
+                    (s.face(f).iter())
+                        .map(|&i| posed.vertex(s, i as usize))
+                        .collect()
+                })
+                .collect();
+            clipped_volume(&faces, &planes)
+        })
+        .sum();
+    Some(1.0 - solid / volume)
+}
+
 /// [`porosity`] for bodies of `solid` volume in all.
 fn porosity_of(b: &Bounds, solid: f64) -> f64 {
     1.0 - solid / (b.area() * b.height())
@@ -1017,6 +1091,88 @@ pub fn next_friction(lo: (f64, f64), hi: (f64, f64), target: f64) -> f64 {
     (a + t * (b - a)).powi(2)
 }
 
+/// The container scaled by `scale` in each direction, with the same templates, sizes and seed
+/// (and a `count` scaled by the volume): [`calibrate`]'s and [`void_limits`]' sample.
+fn sample(p: &Params, scale: f64) -> Result<Params, PackError> {
+    if !(scale > 0.0 && scale <= 1.0) {
+        return Err(PackError::Bad(format!(
+            "--calibration-scale must be in (0, 1], got {scale}"
+        )));
+    }
+    Ok(Params {
+        diameter: p.diameter * scale,
+        width: p.width * scale,
+        depth: p.depth * scale,
+        height: p.height * scale,
+        count: p
+            .count
+            .map(|n| ((n as f64 * scale.powi(3)).round() as usize).max(1)),
+        ..p.clone()
+    })
+}
+
+/// The particle count and void ratio at the end of compaction (step 3) of `sample` at
+/// preparation `friction`; `report` sees the friction and status.
+fn compacted(
+    templates: &[Shape],
+    sample: &Params,
+    friction: f64,
+    every: u64,
+    report: &mut impl FnMut(f64, &Status),
+) -> Result<(usize, f64), PackError> {
+    let q = Params {
+        prep_friction: friction,
+        ..sample.clone()
+    };
+    let mut w = cloud(templates.to_vec(), &q)?;
+    compact(&mut w, &q, every, |s, _| report(friction, s))?;
+    let n = porosity(&w);
+    Ok((w.bodies.len(), n / (1.0 - n)))
+}
+
+fn check_loose(loose_friction: f64) -> Result<(), PackError> {
+    if loose_friction > 0.0 && loose_friction.is_finite() {
+        Ok(())
+    } else {
+        Err(PackError::Bad(format!(
+            "--loose-friction must be a positive friction coefficient, got {loose_friction}"
+        )))
+    }
+}
+
+/// The void-ratio limits alone, measured on the container scaled by `scale` (1: the
+/// specimen's own): compactions at friction 0 (e_min) and at `loose_friction` (e_max).
+#[derive(Clone, Debug, Serialize)]
+pub struct Limits {
+    pub scale: f64,
+    pub particles: usize,
+    pub e_min: f64,
+    pub e_max: f64,
+    pub loose_friction: f64,
+}
+
+/// [`Limits`] of `templates` and `p` on the container scaled by `scale`.
+pub fn void_limits(
+    templates: &[Shape],
+    p: &Params,
+    scale: f64,
+    loose_friction: f64,
+    every: u64,
+    mut report: impl FnMut(f64, &Status),
+) -> Result<Limits, PackError> {
+    check_loose(loose_friction)?;
+    let sample = sample(p, scale)?;
+    let (_, e_min) = compacted(templates, &sample, 0.0, every, &mut report)?;
+    let (particles, e_max) = compacted(templates, &sample, loose_friction, every, &mut report)?;
+    Ok(Limits {
+        scale,
+        particles,
+        e_min,
+        e_max,
+        loose_friction,
+    })
+}
+
 /// Finds e_min, e_max and the preparation friction for `relative_density` on a sample of the
 /// container scaled by `scale` (the same templates, sizes and seed), by compacting it at friction
 /// 0, at `loose_friction`, and then `extra` times at [`next_friction`] within the bracket.
@@ -1037,45 +1193,15 @@ pub fn calibrate(
             "--relative-density must be in [0, 1], got {relative_density}"
         )));
     }
-    if !(scale > 0.0 && scale <= 1.0) {
-        return Err(PackError::Bad(format!(
-            "--calibration-scale must be in (0, 1], got {scale}"
-        )));
-    }
-    if !(loose_friction > 0.0 && loose_friction.is_finite()) {
-        return Err(PackError::Bad(format!(
-            "--loose-friction must be a positive friction coefficient, got {loose_friction}"
-        )));
-    }
-    let sample = Params {
-        diameter: p.diameter * scale,
-        width: p.width * scale,
-        depth: p.depth * scale,
-        height: p.height * scale,
-        count: p
-            .count
-            .map(|n| ((n as f64 * scale.powi(3)).round() as usize).max(1)),
-        ..p.clone()
-    };
-    let mut particles = 0;
-    let mut run = |friction: f64| -> Result<f64, PackError> {
-        let q = Params {
-            prep_friction: friction,
-            ..sample.clone()
-        };
-        let mut w = cloud(templates.to_vec(), &q)?;
-        particles = w.bodies.len();
-        compact(&mut w, &q, every, |s, _| report(friction, s))?;
-        let n = porosity(&w);
-        Ok(n / (1.0 - n))
-    };
-    let mut runs = vec![(0.0, run(0.0)?), (loose_friction, run(loose_friction)?)];
-    let (e_min, e_max) = (runs[0].1, runs[1].1);
+    let limits = void_limits(templates, p, scale, loose_friction, every, &mut report)?;
+    let (e_min, e_max) = (limits.e_min, limits.e_max);
+    let sample = sample(p, scale)?;
+    let mut runs = vec![(0.0, e_min), (loose_friction, e_max)];
     let target = e_max - relative_density * (e_max - e_min);
     let (mut lo, mut hi) = (runs[0], runs[1]);
     for _ in 0..extra {
         let f = next_friction(lo, hi, target);
-        let e = run(f)?;
+        let (_, e) = compacted(templates, &sample, f, every, &mut report)?;
         runs.push((f, e));
         if e <= target {
             lo = (f, e);
@@ -1085,7 +1211,7 @@ pub fn calibrate(
     }
     Ok(Calibration {
         scale,
-        particles,
+        particles: limits.particles,
         e_min,
         e_max,
         loose_friction,
@@ -1112,6 +1238,10 @@ pub struct Summary {
     pub height: f64,
     pub porosity: f64,
     pub void_ratio: f64,
+    /// The void ratio of the core, one largest particle (`size_max`) in from every wall
+    /// ([`core_porosity`]): without the looser layer along the walls. `None` when that leaves
+    /// no core.
+    pub core_void_ratio: Option<f64>,
     /// Particle-particle contacts x 2 over particles.
     pub coordination: f64,
     /// The same without rattlers (particles of fewer than two particle contacts):
@@ -1213,6 +1343,7 @@ pub fn summary(w: &World, p: &Params) -> Summary {
         height: inside.height(),
         porosity: phi,
         void_ratio: phi / (1.0 - phi),
+        core_void_ratio: core_porosity(w, p.size_max).map(|c| c / (1.0 - c)),
         coordination: if n > 0 {
             2.0 * pairs as f64 / n as f64
         } else {
@@ -1409,6 +1540,69 @@ mod tests {
             assert_eq!(b.vel, *v);
             assert!((b.omega() - omega).norm() < 1e-12 * omega.norm());
         }
+    }
+
+    #[test]
+    fn core_porosity_counts_the_part_of_a_straddling_body_inside_the_core() {
+        // One cube in a box 200 x 160 x 120 mm, its centre on the core's x-min side 30 mm in:
+        // half of it is inside, upright or turned about z (a cube is symmetric about its
+        // centre), and none of it when it lies wholly in the layer.
+        let cube = Shape::from_mesh(&crate::mesh::cube(0.5)).unwrap();
+        let p = Params {
+            container: Container::Box,
+            count: Some(1),
+            width: 0.2,
+            depth: 0.16,
+            height: 0.12,
+            size_min: 0.02,
+            size_max: 0.02,
+            ..Params::default()
+        };
+        let mut w = cloud(vec![cube], &p).unwrap();
+        let b = bounds(&w);
+        let Section::Rect { x, y } = b.section else {
+            panic!("a box")
+        };
+        let layer = 0.03;
+        let core =
+            (x[1] - x[0] - 2.0 * layer) * (y[1] - y[0] - 2.0 * layer) * (b.height() - 2.0 * layer);
+        let side = w.bodies[0].scale;
+        let middle = Vec3::new(x[0] + layer, 0.5 * (y[0] + y[1]), 0.5 * (b.bottom + b.top));
+        for turn in [0.0, 0.3, PI / 4.0] {
+            w.bodies[0].pos = middle;
+            w.bodies[0].rot = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), turn);
+            let expected = 1.0 - 0.5 * side.powi(3) / core;
+            let got = core_porosity(&w, layer).unwrap();
+            assert!(
+                (got - expected).abs() < 1e-12,
+                "turn {turn}: {got} {expected}"
+            );
+        }
+        w.bodies[0].pos.x = x[0] + 0.4 * layer;
+        assert_eq!(core_porosity(&w, layer), Some(1.0));
+        // No layer and the cube inside: the container's porosity.
+        w.bodies[0].pos = middle + Vec3::x() * 0.05;
+        let whole = core_porosity(&w, 0.0).unwrap();
+        assert!(
+            (whole - porosity(&w)).abs() < 1e-12,
+            "{whole} {}",
+            porosity(&w)
+        );
+        // A layer that leaves nothing.
+        assert_eq!(core_porosity(&w, 0.061), None);
+        // A cylinder's core without a layer is its facet polygon, as the porosity's.
+        let q = Params {
+            container: Container::Cylinder,
+            diameter: 0.1,
+            ..p.clone()
+        };
+        let c = cloud(w.shapes.clone(), &q).unwrap();
+        let whole = core_porosity(&c, 0.0).unwrap();
+        assert!(
+            (whole - porosity(&c)).abs() < 1e-12,
+            "{whole} {}",
+            porosity(&c)
+        );
     }
 
     #[test]

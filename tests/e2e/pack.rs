@@ -66,6 +66,18 @@ fn pack_rejects_broken_templates_and_arguments() {
         &["cannot be used with"],
     );
     rejects(
+        &["--limits-only", "--relative-density", "0.8"],
+        &nine,
+        2,
+        &["cannot be used with"],
+    );
+    rejects(
+        &["--limits-only", "--calibration-scale", "1.5"],
+        &nine,
+        1,
+        &["--calibration-scale must be in (0, 1]"],
+    );
+    rejects(
         &["--void-ratio-limits", "0.5"],
         &nine,
         2,
@@ -125,6 +137,33 @@ fn pack_rejects_broken_templates_and_arguments() {
     );
 }
 
+/// 36 particles of the nine templates, soft (kn = 1e6 N/m at 1 kPa: the paper's overlap per
+/// size of 1e8 N/m at 100 kPa, at a 10 times longer time step).
+const SOFT: [&str; 10] = [
+    "--count",
+    "36",
+    "--diameter",
+    "0.06",
+    "--height",
+    "0.12",
+    "--size-min",
+    "0.012",
+    "--size-max",
+    "0.02",
+];
+
+/// The soft specimens' contact law, pressure and loose strain rate.
+const SOFT_LAW: [&str; 8] = [
+    "--kn",
+    "1e6",
+    "--ks",
+    "5e5",
+    "--pressure",
+    "1e3",
+    "--loose-strain-rate",
+    "4",
+];
+
 /// One summary field as a number.
 fn field(summary: &serde_json::Value, key: &str) -> f64 {
     summary[key]
@@ -134,8 +173,7 @@ fn field(summary: &serde_json::Value, key: &str) -> f64 {
 
 #[test]
 fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_threads() {
-    // 36 particles of the nine templates, soft (kn = 1e6 N/m at 1 kPa: the paper's overlap per
-    // size of 1e8 N/m at 100 kPa, at a 10 times longer time step). About a minute.
+    // The SOFT specimen. About a minute.
     let dir = std::env::temp_dir().join(format!("pack-e2e-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let nine = fixture("templates_seed7.obj");
@@ -146,24 +184,6 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
                 scope.spawn(move || {
                     let path = dir.join(format!("summary{threads}.json"));
                     let args = [
-                        "--count",
-                        "36",
-                        "--diameter",
-                        "0.06",
-                        "--height",
-                        "0.12",
-                        "--size-min",
-                        "0.012",
-                        "--size-max",
-                        "0.02",
-                        "--kn",
-                        "1e6",
-                        "--ks",
-                        "5e5",
-                        "--pressure",
-                        "1e3",
-                        "--loose-strain-rate",
-                        "4",
                         "--void-ratio-limits",
                         "0.6,1.6",
                         "--summary",
@@ -173,7 +193,8 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
                     ];
                     // The run on one thread also writes VTK snapshots.
                     let vtk = dir.join("vtk");
-                    let mut args = args.to_vec();
+                    let mut args: Vec<&str> =
+                        SOFT.iter().chain(&SOFT_LAW).copied().chain(args).collect();
                     if threads == "1" {
                         args.extend(["--vtk", vtk.to_str().unwrap()]);
                     }
@@ -239,6 +260,66 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
 }
 
 #[test]
+fn limits_measured_alone_are_the_calibrations_and_given_limits_set_the_reported_dr() {
+    // The soft 36-particle specimen of the test above. `--limits-only` on the container itself,
+    // and beside it a calibration on a sample of the same size (scale 1): the same two
+    // compactions, so the same limits to the bit; given limits then make the specimen's Dr.
+    // About a minute.
+    let nine = fixture("templates_seed7.obj");
+    let common: Vec<&str> = (SOFT.iter().chain(&SOFT_LAW).copied())
+        .chain(["--calibration-scale", "1", "--every", "1000000"])
+        .collect();
+    let dir = std::env::temp_dir().join(format!("pack-limits-e2e-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("summary.json");
+    let specimen_args: Vec<&str> = (common.iter().copied())
+        .chain([
+            "--relative-density",
+            "0.5",
+            "--calibration-runs",
+            "0",
+            "--void-ratio-limits",
+            "0.9,1.8",
+            "--summary",
+            path.to_str().unwrap(),
+        ])
+        .collect();
+    let (limits, specimen) = std::thread::scope(|scope| {
+        let limits = scope.spawn(|| {
+            let args: Vec<&str> = common.iter().copied().chain(["--limits-only"]).collect();
+            run("pack", &args, &nine)
+        });
+        let specimen = run("pack", &specimen_args, &nine);
+        (limits.join().unwrap(), specimen)
+    });
+    for out in [&limits, &specimen] {
+        assert!(
+            out.status.success(),
+            "pack failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let text = String::from_utf8(limits.stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one JSON line: {text}");
+    let l: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let (e_min, e_max) = (field(&l, "e_min"), field(&l, "e_max"));
+    assert!(0.0 < e_min && e_min < e_max, "e_min {e_min}, e_max {e_max}");
+    assert_eq!((field(&l, "particles"), field(&l, "scale")), (36.0, 1.0));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let c = &s["calibration"];
+    assert_eq!((field(c, "e_min"), field(c, "e_max")), (e_min, e_max));
+    // The friction from the sample's own limits; Dr against the given ones.
+    let f = field(&s, "prep_friction");
+    assert!(f > 0.0 && f < 1.0, "preparation friction {f}");
+    assert_eq!((field(&s, "e_min"), field(&s, "e_max")), (0.9, 1.8));
+    let dr = (1.8 - field(&s, "void_ratio")) / (1.8 - 0.9);
+    assert!((field(&s, "relative_density") - dr).abs() < 1e-12);
+    assert!(!specimen.stdout.is_empty());
+}
+
+#[test]
 fn a_small_specimen_in_a_box_holds_the_pressure_on_all_six_walls() {
     // 36 particles, soft as in the cylinder's test, in a box 60 x 50 x 120 mm: sides that differ
     // so that a wall mixed up with another shows. About 10 s.
@@ -262,19 +343,12 @@ fn a_small_specimen_in_a_box_holds_the_pressure_on_all_six_walls() {
         "0.02",
         "--size-measure",
         "circumscribed",
-        "--kn",
-        "1e6",
-        "--ks",
-        "5e5",
-        "--pressure",
-        "1e3",
-        "--loose-strain-rate",
-        "4",
         "--summary",
         path.to_str().unwrap(),
         "--every",
         "20000",
     ];
+    let args: Vec<&str> = args.iter().chain(&SOFT_LAW).copied().collect();
     let out = run("pack", &args, &fixture("templates_seed7.obj"));
     assert!(
         out.status.success(),

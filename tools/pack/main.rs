@@ -14,6 +14,8 @@ Examples:
   polygen --faces 6..14 --seed 7 | pack --diameter 0.15 --height 0.3 --summary ip.json > ip.jsonl
   pack --count 60 --diameter 0.1 --height 0.2 --size-min 0.012 --size-max 0.02 < nine.obj > small.jsonl
   pack --relative-density 0.8 < nine.obj > dr08.jsonl     (calibrates on a half-size sample first)
+  pack --limits-only --calibration-scale 1 < nine.obj > limits.json   (e_min, e_max at full size)
+  pack --relative-density 0.8 --void-ratio-limits 0.618,1.175 < nine.obj > dr08.jsonl
   pack --container box --width 0.2 --depth 0.2 --height 0.4 < nine.obj > box.jsonl
   pack ... | dem --steps 1000 > later.jsonl      (the specimen is a dem state: it runs on)
 
@@ -32,7 +34,10 @@ friction is restored and each wall holds its own servo until every wall is withi
 and the unbalanced-force ratio is below --unbalanced (damping --prep-damping throughout; the
 state carries --damping). --relative-density DR first finds e_min (no
 friction), e_max (--loose-friction) and the preparation friction for DR on a smaller sample
-(--calibration-scale). Lengths in m, stresses in Pa.";
+(--calibration-scale). The limits depend on the container's size (a smaller one has more wall,
+which loosens it): measured once at the specimen's size (--limits-only --calibration-scale 1)
+and given as --void-ratio-limits, they make the reported Dr the specimen's own.
+Lengths in m, stresses in Pa.";
 
 /// The container's shape.
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -112,11 +117,17 @@ struct Cli {
     /// Calibration runs after the two limits, each narrowing the friction for the target
     #[arg(long, default_value_t = 2)]
     calibration_runs: usize,
-    /// Known void-ratio limits E_MIN,E_MAX (of the same templates and sizes), to report the
-    /// relative density of a specimen made with --prep-friction
-    #[arg(long, value_name = "E_MIN,E_MAX", conflicts_with = "relative_density",
-          value_parser = parse_limits)]
+    /// Known void-ratio limits E_MIN,E_MAX of the same templates and sizes at the specimen's
+    /// scale (--limits-only --calibration-scale 1 measures them): the specimen's relative
+    /// density is reported against them; with --relative-density the sample still chooses the
+    /// friction
+    #[arg(long, value_name = "E_MIN,E_MAX", value_parser = parse_limits)]
     void_ratio_limits: Option<(f64, f64)>,
+    /// Measure the void-ratio limits alone, on the container scaled by --calibration-scale
+    /// (1: the specimen's own), and write them to standard output as one JSON line instead of
+    /// a specimen
+    #[arg(long, conflicts_with_all = ["relative_density", "void_ratio_limits", "prep_friction"])]
+    limits_only: bool,
     /// Local damping while preparing (compaction and equilibrium; the state gets --damping)
     #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     prep_damping: f64,
@@ -188,6 +199,14 @@ struct Cli {
 }
 
 /// Wall stresses for a progress line: "1.0000e5 9.9000e4 ...".
+/// One progress line of a calibration or limits run at preparation friction `f`.
+fn report_calibration(f: f64, s: &pack::Status) {
+    eprintln!(
+        "pack: calibration at friction {f:.4}, {} step {}: wall stresses {} Pa, porosity {:.4}, unbalanced {:.3e}",
+        s.phase, s.step, stresses(&s.stresses), s.porosity, s.unbalanced
+    )
+}
+
 fn stresses(s: &[f64]) -> String {
     let parts: Vec<String> = s.iter().map(|x| format!("{x:.4e}")).collect();
     parts.join(" ")
@@ -305,6 +324,31 @@ fn run(args: Cli) -> anyhow::Result<()> {
             bail!("--void-ratio-limits must be 0 < E_MIN < E_MAX, got {lo},{hi}");
         }
     }
+    if args.limits_only {
+        let l = pack::void_limits(
+            &shapes,
+            &params,
+            args.calibration_scale,
+            args.loose_friction,
+            args.every,
+            report_calibration,
+        )?;
+        let secs = clock.elapsed().as_secs_f64();
+        eprintln!(
+            "pack: void-ratio limits on {} particles (scale {}): e_min {:.4} (friction 0), e_max {:.4} (friction {}) in {secs:.1} s; --void-ratio-limits {:.4},{:.4}",
+            l.particles, l.scale, l.e_min, l.e_max, l.loose_friction, l.e_min, l.e_max
+        );
+        let mut line = serde_json::to_value(&l)?;
+        line["wall_clock"] = serde_json::json!(secs);
+        let text = format!("{line}\n");
+        if let Some(path) = &args.summary {
+            std::fs::write(path, &text).with_context(|| format!("writing {}", path.display()))?;
+        }
+        let mut out = cli::stdout();
+        out.write_all(text.as_bytes())?;
+        out.flush()?;
+        return Ok(());
+    }
     let calibration = match args.relative_density {
         Some(dr) => {
             let c = pack::calibrate(
@@ -315,19 +359,20 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 args.loose_friction,
                 args.calibration_runs,
                 args.every,
-                |f, s| {
-                    eprintln!(
-                        "pack: calibration at friction {f:.4}, {} step {}: wall stresses {} Pa, porosity {:.4}, unbalanced {:.3e}",
-                        s.phase, s.step, stresses(&s.stresses), s.porosity, s.unbalanced
-                    )
-                },
+                report_calibration,
             )?;
             eprintln!(
                 "pack: calibration on {} particles: e_min {:.4} (friction 0), e_max {:.4} (friction {}), runs {:?}; preparation friction {:.4} for Dr {dr}",
                 c.particles, c.e_min, c.e_max, c.loose_friction, c.runs, c.prep_friction
             );
             params.prep_friction = c.prep_friction;
-            limits = Some((c.e_min, c.e_max));
+            if let Some((lo, hi)) = limits {
+                eprintln!(
+                    "pack: the specimen's Dr is reported against --void-ratio-limits {lo},{hi}, not the sample's"
+                );
+            } else {
+                limits = Some((c.e_min, c.e_max));
+            }
             Some(c)
         }
         None => None,

@@ -22,7 +22,7 @@
 use super::gjk::{separating_gap, Hints, Points};
 use super::shape::{Posed, Shape};
 use super::structure::{discover, Packed, Pair, Structure};
-use crate::math::{bounding_box, Vec3};
+use crate::math::{bounding_box, clip, Vec3};
 
 /// The overlap of two bodies: volume, centroid, and `S_B` (area vector of B's surface inside A,
 /// outward from B). `normal()` points from A to B.
@@ -251,38 +251,6 @@ const CODED: usize = 55;
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
-}
-
-/// Clips the convex polygon `poly` to the half-space `n . x <= d` in place (`tmp` and `dist`
-/// are scratch); false when less than a polygon is left. A polygon wholly inside is left as it
-/// is, without copying.
-fn clip(poly: &mut Vec<Vec3>, tmp: &mut Vec<Vec3>, dist: &mut Vec<f64>, n: &Vec3, d: f64) -> bool {
-    dist.clear();
-    dist.extend(poly.iter().map(|p| n.dot(p) - d));
-    if dist.iter().all(|&s| s <= 0.0) {
-        return poly.len() >= 3;
-    }
-    tmp.clear();
-    // Edge i runs from vertex i to i + 1 (the last one back to the first): what is kept of it,
-    // in that order.
-    let mut edge = |p: &Vec3, q: &Vec3, sp: f64, sq: f64| {
-        if sp <= 0.0 {
-            tmp.push(*p);
-        }
-        if (sp < 0.0 && sq > 0.0) || (sp > 0.0 && sq < 0.0) {
-            tmp.push(p + (q - p) * (sp / (sp - sq)));
-        }
-    };
-    for (pq, s) in poly.windows(2).zip(dist.windows(2)) {
-        edge(&pq[0], &pq[1], s[0], s[1]);
-    }
-    if let (Some(p), Some(q), Some(&sp), Some(&sq)) =
-        (poly.last(), poly.first(), dist.last(), dist.first())
-    {
-        edge(p, q, sp, sq);
-    }
-    std::mem::swap(poly, tmp);
-    poly.len() >= 3
 }
 
 /// The culling half-spaces as (normal, offset): the slab `lo_n <= n . x <= hi_n` first (the
