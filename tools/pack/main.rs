@@ -198,7 +198,6 @@ struct Cli {
     every: u64,
 }
 
-/// Wall stresses for a progress line: "1.0000e5 9.9000e4 ...".
 /// One progress line of a calibration or limits run at preparation friction `f`.
 fn report_calibration(f: f64, s: &pack::Status) {
     eprintln!(
@@ -207,6 +206,7 @@ fn report_calibration(f: f64, s: &pack::Status) {
     )
 }
 
+/// Wall stresses for a progress line: "1.0000e5 9.9000e4 ...".
 fn stresses(s: &[f64]) -> String {
     let parts: Vec<String> = s.iter().map(|x| format!("{x:.4e}")).collect();
     parts.join(" ")
