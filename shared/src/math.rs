@@ -48,6 +48,17 @@ pub fn basis(axis: &Vec3) -> (Vec3, Vec3) {
     (e1, axis.cross(&e1))
 }
 
+/// Largest value of `n . x - d` over the box corners: <= 0 means the box is inside.
+#[inline]
+pub fn box_excess(n: &Vec3, d: f64, lo: &Vec3, hi: &Vec3) -> f64 {
+    let corner = Vec3::new(
+        if n.x > 0.0 { hi.x } else { lo.x },
+        if n.y > 0.0 { hi.y } else { lo.y },
+        if n.z > 0.0 { hi.z } else { lo.z },
+    );
+    n.dot(&corner) - d
+}
+
 /// Clips the convex polygon `poly` to the half-space `n . x <= d` in place (`tmp` and `dist`
 /// are scratch); false when less than a polygon is left. A polygon wholly inside is left as it
 /// is, without copying.

@@ -32,7 +32,7 @@ use crate::dem::shape::Shape;
 use crate::dem::wall::{Wall, WallKind};
 use crate::dem::world::{Material, Partner, World};
 use crate::mass::{clipped_volume, equivalent_diameter};
-use crate::math::Vec3;
+use crate::math::{box_excess, Vec3};
 use nalgebra::{Quaternion, UnitQuaternion};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -893,18 +893,11 @@ fn core(b: &Bounds, layer: f64) -> Option<(Vec<(Vec3, f64)>, f64)> {
 
 /// Porosity of the container's core, `layer` in from every wall ([`core`]): the bodies' volume
 /// inside it (each straddling body clipped exactly, [`clipped_volume`]) over its volume.
-/// Away from the walls, where particles pack looser against a flat surface, it is the bulk
-/// porosity of the material, the same for a small sample as for the specimen. `None` when the
-/// layer leaves no core. `w` is made by [`cloud`].
+/// It leaves out the layer along the walls, where particles pack looser against a flat surface
+/// (docs/pack.md has what it measures, small sample against specimen). `None` when the layer
+/// leaves no core. `w` is made by [`cloud`].
 pub fn core_porosity(w: &World, layer: f64) -> Option<f64> {
     let (planes, volume) = core(&bounds(w), layer)?;
-    let corner = |n: &Vec3, lo: &Vec3, hi: &Vec3| {
-        Vec3::new(
-            if n.x > 0.0 { hi.x } else { lo.x },
-            if n.y > 0.0 { hi.y } else { lo.y },
-            if n.z > 0.0 { hi.z } else { lo.z },
-        )
-    };
     let solid: f64 = w
         .bodies
         .iter()
@@ -913,10 +906,10 @@ pub fn core_porosity(w: &World, layer: f64) -> Option<f64> {
             let posed = s.posed(&body.pos, &body.rot, body.scale);
             let (lo, hi) = (posed.lo, posed.hi);
             // Wholly beyond one plane (its box is), or wholly inside all of them.
-            if (planes.iter()).any(|(n, d)| n.dot(&corner(&-n, &lo, &hi)) >= *d) {
+            if (planes.iter()).any(|(n, d)| box_excess(&-n, -d, &lo, &hi) <= 0.0) {
                 return 0.0;
             }
-            if (planes.iter()).all(|(n, d)| n.dot(&corner(n, &lo, &hi)) <= *d) {
+            if (planes.iter()).all(|(n, d)| box_excess(n, *d, &lo, &hi) <= 0.0) {
                 return s.volume * body.scale.powi(3);
             }
             let faces: Vec<Vec<Vec3>> = (0..s.face_count())

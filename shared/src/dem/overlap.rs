@@ -22,7 +22,7 @@
 use super::gjk::{separating_gap, Hints, Points};
 use super::shape::{Posed, Shape};
 use super::structure::{discover, Packed, Pair, Structure};
-use crate::math::{bounding_box, clip, Vec3};
+use crate::math::{bounding_box, box_excess, clip, Vec3};
 
 /// The overlap of two bodies: volume, centroid, and `S_B` (area vector of B's surface inside A,
 /// outward from B). `normal()` points from A to B.
@@ -266,16 +266,6 @@ fn bound_planes(n: &Vec3, lo_n: f64, hi_n: f64, lo: &Vec3, hi: &Vec3) -> [(Vec3,
         (Vec3::z(), hi.z),
         (-Vec3::z(), -lo.z),
     ]
-}
-
-/// Largest value of `n . x - d` over the box corners: <= 0 means the box is inside.
-fn box_excess(n: &Vec3, d: f64, lo: &Vec3, hi: &Vec3) -> f64 {
-    let corner = Vec3::new(
-        if n.x > 0.0 { hi.x } else { lo.x },
-        if n.y > 0.0 { hi.y } else { lo.y },
-        if n.z > 0.0 { hi.z } else { lo.z },
-    );
-    n.dot(&corner) - d
 }
 
 /// Two planes are one when their normals agree to this (relative) and their offsets to
