@@ -858,16 +858,14 @@ pub fn porosity(w: &World) -> f64 {
     porosity_of(&bounds(w), solid_volume(w))
 }
 
-/// The container's core: the prism left when every wall moves `layer` inwards, as half-spaces
-/// `n . x <= d`, and its volume; `None` when nothing is left. A cylinder's core has the sides
-/// of its facet polygon (any orientation: the sides only bound a region).
+/// The container's core: the prism left when every wall moves `layer` inwards, as the
+/// half-spaces `n . x <= d` that bound it and its volume; `None` when nothing is left. A
+/// cylinder's core is a polygon of as many sides as its facets (in any orientation: the sides
+/// only bound a region), its apothem `layer` shorter.
 fn core(b: &Bounds, layer: f64) -> Option<(Vec<(Vec3, f64)>, f64)> {
-    let height = b.height() - 2.0 * layer;
-    let mut planes = vec![
-        (-Vec3::z(), -(b.bottom + layer)),
-        (Vec3::z(), b.top - layer),
-    ];
-    let area = match b.section {
+    let (bottom, top) = (b.bottom + layer, b.top - layer);
+    let mut planes = vec![(-Vec3::z(), -bottom), (Vec3::z(), top)];
+    let section = match b.section {
         Section::Circle { radius, segments } => {
             let n = f64::from(segments);
             let apothem = radius * (PI / n).cos() - layer;
@@ -875,20 +873,28 @@ fn core(b: &Bounds, layer: f64) -> Option<(Vec<(Vec3, f64)>, f64)> {
                 let a = 2.0 * PI * f64::from(k) / n;
                 (Vec3::new(a.cos(), a.sin(), 0.0), apothem)
             }));
-            (apothem > 0.0).then(|| n * apothem * apothem * (PI / n).tan())
+            (apothem > 0.0).then(|| Section::Circle {
+                radius: apothem / (PI / n).cos(),
+                segments,
+            })
         }
         Section::Rect { x, y } => {
+            let (x, y) = ([x[0] + layer, x[1] - layer], [y[0] + layer, y[1] - layer]);
             planes.extend([
-                (-Vec3::x(), -(x[0] + layer)),
-                (Vec3::x(), x[1] - layer),
-                (-Vec3::y(), -(y[0] + layer)),
-                (Vec3::y(), y[1] - layer),
+                (-Vec3::x(), -x[0]),
+                (Vec3::x(), x[1]),
+                (-Vec3::y(), -y[0]),
+                (Vec3::y(), y[1]),
             ]);
-            let (wx, wy) = (x[1] - x[0] - 2.0 * layer, y[1] - y[0] - 2.0 * layer);
-            (wx > 0.0 && wy > 0.0).then_some(wx * wy)
+            (x[0] < x[1] && y[0] < y[1]).then_some(Section::Rect { x, y })
         }
     }?;
-    (height > 0.0).then_some((planes, area * height))
+    let inset = Bounds {
+        section,
+        bottom,
+        top,
+    };
+    (bottom < top).then(|| (planes, inset.area() * inset.height()))
 }
 
 /// Porosity of the container's core, `layer` in from every wall ([`core`]): the bodies' volume
@@ -1057,13 +1063,9 @@ fn phase(
 /// density, found on a smaller sample (docs/pack.md, "Relative density").
 #[derive(Clone, Debug, Serialize)]
 pub struct Calibration {
-    /// The sample's container over the specimen's, in each direction.
-    pub scale: f64,
-    pub particles: usize,
-    /// Void ratio after compaction without friction (the densest) and at `loose_friction`.
-    pub e_min: f64,
-    pub e_max: f64,
-    pub loose_friction: f64,
+    /// The sample's limits (its scale, particles, e_min, e_max, loose friction).
+    #[serde(flatten)]
+    pub limits: Limits,
     /// The target, and the preparation friction chosen for it.
     pub relative_density: f64,
     pub prep_friction: f64,
@@ -1137,8 +1139,10 @@ fn check_loose(loose_friction: f64) -> Result<(), PackError> {
 /// specimen's own): compactions at friction 0 (e_min) and at `loose_friction` (e_max).
 #[derive(Clone, Debug, Serialize)]
 pub struct Limits {
+    /// The sample's container over the specimen's, in each direction.
     pub scale: f64,
     pub particles: usize,
+    /// Void ratio after compaction without friction (the densest) and at `loose_friction`.
     pub e_min: f64,
     pub e_max: f64,
     pub loose_friction: f64,
@@ -1153,10 +1157,28 @@ pub fn void_limits(
     every: u64,
     mut report: impl FnMut(f64, &Status),
 ) -> Result<Limits, PackError> {
+    limits_of(
+        templates,
+        &sample(p, scale)?,
+        scale,
+        loose_friction,
+        every,
+        &mut report,
+    )
+}
+
+/// [`void_limits`] on the `sample` made by [`sample`] at `scale`.
+fn limits_of(
+    templates: &[Shape],
+    sample: &Params,
+    scale: f64,
+    loose_friction: f64,
+    every: u64,
+    report: &mut impl FnMut(f64, &Status),
+) -> Result<Limits, PackError> {
     check_loose(loose_friction)?;
-    let sample = sample(p, scale)?;
-    let (_, e_min) = compacted(templates, &sample, 0.0, every, &mut report)?;
-    let (particles, e_max) = compacted(templates, &sample, loose_friction, every, &mut report)?;
+    let (_, e_min) = compacted(templates, sample, 0.0, every, report)?;
+    let (particles, e_max) = compacted(templates, sample, loose_friction, every, report)?;
     Ok(Limits {
         scale,
         particles,
@@ -1186,9 +1208,16 @@ pub fn calibrate(
             "--relative-density must be in [0, 1], got {relative_density}"
         )));
     }
-    let limits = void_limits(templates, p, scale, loose_friction, every, &mut report)?;
-    let (e_min, e_max) = (limits.e_min, limits.e_max);
     let sample = sample(p, scale)?;
+    let limits = limits_of(
+        templates,
+        &sample,
+        scale,
+        loose_friction,
+        every,
+        &mut report,
+    )?;
+    let (e_min, e_max) = (limits.e_min, limits.e_max);
     let mut runs = vec![(0.0, e_min), (loose_friction, e_max)];
     let target = e_max - relative_density * (e_max - e_min);
     let (mut lo, mut hi) = (runs[0], runs[1]);
@@ -1203,11 +1232,7 @@ pub fn calibrate(
         }
     }
     Ok(Calibration {
-        scale,
-        particles: limits.particles,
-        e_min,
-        e_max,
-        loose_friction,
+        limits,
         relative_density,
         prep_friction: next_friction(lo, hi, target),
         runs,

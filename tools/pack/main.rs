@@ -363,7 +363,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
             )?;
             eprintln!(
                 "pack: calibration on {} particles: e_min {:.4} (friction 0), e_max {:.4} (friction {}), runs {:?}; preparation friction {:.4} for Dr {dr}",
-                c.particles, c.e_min, c.e_max, c.loose_friction, c.runs, c.prep_friction
+                c.limits.particles, c.limits.e_min, c.limits.e_max, c.limits.loose_friction, c.runs, c.prep_friction
             );
             params.prep_friction = c.prep_friction;
             if let Some((lo, hi)) = limits {
@@ -371,7 +371,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                     "pack: the specimen's Dr is reported against --void-ratio-limits {lo},{hi}, not the sample's"
                 );
             } else {
-                limits = Some((c.e_min, c.e_max));
+                limits = Some((c.limits.e_min, c.limits.e_max));
             }
             Some(c)
         }
