@@ -782,77 +782,41 @@ impl World {
         // (the order of a serial loop over them), on any number of threads.
         let nb = self.bodies.len();
         let (start, ends) = ends_by_body(&touches, nb);
-        let bodies = &self.bodies;
-        let gravity = self.gravity;
-        let gather = |i: usize| {
-            let b = &bodies[i];
-            let mut f = if b.fixed {
-                Vec3::zeros()
-            } else {
-                gravity * b.mass
-            };
-            let mut m = Vec3::zeros();
+        self.times.assembly += lap();
+        // Two independent halves, side by side on the pool: each body gathers its forces and
+        // moves (damping, kick, drift, rotation), while the contact list, the walls' loads and
+        // the energy sums are made from the touches. Each half reads the touches and writes
+        // its own fields, so the result does not depend on which runs first or on how many
+        // threads share the work (one thread runs them one after the other).
+        let World {
+            bodies,
+            walls,
+            contacts,
+            kept_buffer,
+            energy,
+            material,
+            keep_structures,
+            gravity,
+            ..
+        } = self;
+        let (material, gravity) = (&*material, *gravity);
+        let alpha = material.damping;
+        let touches = &touches;
+        let gather_kick = |(i, b): (usize, &mut Body)| {
+            if b.fixed {
+                return None;
+            }
+            let (mut force, mut torque) = (gravity * b.mass, Vec3::zeros());
             for &e in &ends[start[i] as usize..start[i + 1] as usize] {
                 let t = &touches[(e >> 1) as usize];
                 let arm = (t.contact.point - b.pos).cross(&t.force) + t.couple;
                 if e & 1 == 0 {
-                    f += t.force;
-                    m += arm;
+                    force += t.force;
+                    torque += arm;
                 } else {
-                    f -= t.force;
-                    m -= arm;
+                    force -= t.force;
+                    torque -= arm;
                 }
-            }
-            (f, m)
-        };
-        let loads: Vec<(Vec3, Vec3)> = if par {
-            (0..nb).into_par_iter().map(gather).collect()
-        } else {
-            (0..nb).map(gather).collect()
-        };
-        for w in &mut self.walls {
-            w.clear_forces();
-        }
-        let mut elastic = 0.0;
-        let mut wall_work = 0.0;
-        let mut contact_force = 0.0;
-        for t in &touches {
-            contact_force += t.force.norm();
-            if let Partner::Wall(w) = t.key.0 {
-                self.walls[w as usize].push(&-t.force, &t.node_weights);
-                wall_work += t.wall_work;
-            }
-            elastic += t.contact.elastic_energy(&self.material);
-            self.energy.friction += t.slip_energy;
-        }
-        let mean_contact_force = contact_force / touches.len() as f64;
-        let last_kept = self.contacts.take_kept();
-        self.contacts = Contacts::from_sorted(&touches, par, |t| t.key, |t| t.contact.clone());
-        drop(touches);
-        // The structures move on with their contacts (body pairs come first in key order).
-        if self.keep_structures {
-            let kept: Vec<Option<&[u32]>> = chunks
-                .iter()
-                .flat_map(|(t, _)| t)
-                .map(|t| match &t.kept {
-                    Found::Kept => last_kept.get(t.at).map(|s| s.words()),
-                    Found::New(s) => Some(s.packed().words()),
-                    Found::None => None,
-                })
-                .collect();
-            let buffer = std::mem::take(&mut self.kept_buffer);
-            self.contacts.keep(&kept, buffer, par);
-        }
-        self.kept_buffer = last_kept.into_buffer();
-        self.energy.elastic = elastic;
-        self.energy.wall_work += wall_work;
-        self.times.assembly += lap();
-        // Damping, kick, drift; per body in parallel, the sums over bodies in body order.
-        let alpha = self.material.damping;
-        let g = self.gravity;
-        let kick = |(b, &(force, torque)): (&mut Body, &(Vec3, Vec3))| {
-            if b.fixed {
-                return None;
             }
             let omega = b.omega();
             let (mut f, mut m) = (force, torque);
@@ -868,14 +832,58 @@ impl World {
             // Damping dissipation: minus the work of the damping force over the step.
             let damping = -(df.dot(&(v_old + b.vel)) * 0.5 * dt + dm.dot(&omega) * dt);
             b.pos += b.vel * dt;
-            let gravity_work = b.mass * g.dot(&b.vel) * dt;
+            let gravity_work = b.mass * gravity.dot(&b.vel) * dt;
             free_rotation(&mut b.rot, &b.ang_mom, &b.moments, dt);
             Some([force.norm(), damping, gravity_work, b.kinetic_energy()])
         };
-        let terms: Vec<Option<[f64; 4]>> = if par {
-            self.bodies.par_iter_mut().zip(&loads).map(kick).collect()
+        let mut move_bodies = || -> Vec<Option<[f64; 4]>> {
+            if par {
+                bodies.par_iter_mut().enumerate().map(gather_kick).collect()
+            } else {
+                bodies.iter_mut().enumerate().map(gather_kick).collect()
+            }
+        };
+        let mut list_contacts = || {
+            for w in walls.iter_mut() {
+                w.clear_forces();
+            }
+            let mut elastic = 0.0;
+            let mut wall_work = 0.0;
+            let mut contact_force = 0.0;
+            for t in touches {
+                contact_force += t.force.norm();
+                if let Partner::Wall(w) = t.key.0 {
+                    walls[w as usize].push(&-t.force, &t.node_weights);
+                    wall_work += t.wall_work;
+                }
+                elastic += t.contact.elastic_energy(material);
+                energy.friction += t.slip_energy;
+            }
+            let last_kept = contacts.take_kept();
+            *contacts = Contacts::from_sorted(touches, par, |t| t.key, |t| t.contact.clone());
+            // The structures move on with their contacts (body pairs come first in key order).
+            if *keep_structures {
+                let kept: Vec<Option<&[u32]>> = chunks
+                    .iter()
+                    .flat_map(|(t, _)| t)
+                    .map(|t| match &t.kept {
+                        Found::Kept => last_kept.get(t.at).map(|s| s.words()),
+                        Found::New(s) => Some(s.packed().words()),
+                        Found::None => None,
+                    })
+                    .collect();
+                let buffer = std::mem::take(kept_buffer);
+                contacts.keep(&kept, buffer, par);
+            }
+            *kept_buffer = last_kept.into_buffer();
+            energy.elastic = elastic;
+            energy.wall_work += wall_work;
+            contact_force / touches.len() as f64
+        };
+        let (terms, mean_contact_force) = if par {
+            rayon::join(move_bodies, list_contacts)
         } else {
-            self.bodies.iter_mut().zip(&loads).map(kick).collect()
+            (move_bodies(), list_contacts())
         };
         let (mut kinetic, mut damping, mut gravity_work) = (0.0, 0.0, 0.0);
         let (mut free, mut net) = (0usize, 0.0);
