@@ -32,6 +32,20 @@ pub struct Broad {
 impl Broad {
     /// Pairs `(i, j)`, `i < j`, whose boxes overlap, ascending; in parallel when `par`.
     pub fn pairs(&mut self, boxes: &[Aabb], par: bool) -> Vec<(u32, u32)> {
+        let touch = |&&(i, j): &&(u32, u32)| overlap(&boxes[i as usize], &boxes[j as usize]);
+        let listed = self.candidates(boxes, par);
+        if par {
+            listed.par_iter().filter(touch).copied().collect()
+        } else {
+            listed.iter().filter(touch).copied().collect()
+        }
+    }
+
+    /// Pairs `(i, j)`, `i < j`, ascending, among which are all whose boxes overlap: the kept
+    /// list (swept again first when a box has left its grown box). The caller filters them by
+    /// [`overlap`] where it reads the boxes anyway (the narrow phase: a pass of its own over
+    /// the list cost 3 to 7 % of a step on the 2000 I_P bed).
+    pub fn candidates(&mut self, boxes: &[Aabb], par: bool) -> &[(u32, u32)] {
         let inside = |(b, g): (&Aabb, &Aabb)| (0..3).all(|k| g.0[k] <= b.0[k] && b.1[k] <= g.1[k]);
         let kept = self.grown.len() == boxes.len() && boxes.iter().zip(&self.grown).all(inside);
         if !kept {
@@ -45,16 +59,12 @@ impl Broad {
             self.listed = sweep(&self.grown, &mut self.order, par);
             self.sweeps += 1;
         }
-        let touch = |&&(i, j): &&(u32, u32)| overlap(&boxes[i as usize], &boxes[j as usize]);
-        if par {
-            self.listed.par_iter().filter(touch).copied().collect()
-        } else {
-            self.listed.iter().filter(touch).copied().collect()
-        }
+        &self.listed
     }
 }
 
-fn overlap(a: &Aabb, b: &Aabb) -> bool {
+/// Whether two boxes overlap (touching counts).
+pub fn overlap(a: &Aabb, b: &Aabb) -> bool {
     (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k])
 }
 

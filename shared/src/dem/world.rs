@@ -23,7 +23,7 @@
 //! Energy audit: kinetic + elastic (normal and shear springs) + friction and damping
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
 
-use super::broad::{Aabb, Broad};
+use super::broad::{overlap as overlap_boxes, Aabb, Broad};
 use super::contacts::Contacts;
 use super::gjk::Hints;
 use super::overlap::{centre_line, gap_proof, overlap_kept, Found, GapProof, Overlap};
@@ -648,17 +648,21 @@ impl World {
         self.pose_all(&mut posed);
         let par = parallel(self.bodies.len());
         let boxes: Vec<Aabb> = posed.iter().map(|p| (p.lo, p.hi)).collect();
-        let pairs = self.broad.pairs(&boxes, par);
+        let mut broad = std::mem::take(&mut self.broad);
+        let pairs = broad.candidates(&boxes, par);
         self.times.broad += lap();
         // `at`: where this chunk's walk over the contact list is (see `Contacts::seek`).
         // `gap_at`: the same over the gap proofs (`Separations::seek`).
         let narrow = |&(i, j): &(u32, u32), at: &mut usize, gap_at: &mut (usize, usize)| {
+            let (pi, pj) = (&posed[i as usize], &posed[j as usize]);
+            if !overlap_boxes(&(pi.lo, pi.hi), &(pj.lo, pj.hi)) {
+                return None;
+            }
             let (bi, bj) = (&self.bodies[i as usize], &self.bodies[j as usize]);
             if bi.fixed && bj.fixed {
                 return None;
             }
             let key = (Partner::Body(i), j);
-            let (pi, pj) = (&posed[i as usize], &posed[j as usize]);
             let (si, sj) = (
                 &self.shapes[bi.shape as usize],
                 &self.shapes[bj.shape as usize],
@@ -710,7 +714,7 @@ impl World {
         // results into one list (that copy was 4 % of a step on 2 threads): the touches are
         // then referenced in pair order.
         let contacts = &self.contacts;
-        let mut chunks = map_chunks_maybe_par(&pairs, par, |chunk| {
+        let mut chunks = map_chunks_maybe_par(pairs, par, |chunk| {
             // Room for every pair in either list: growing them by doubling (realloc copies of
             // 200-byte items) was 6 % of a step's instructions on the 2000 I_P bed.
             let (mut touches, mut apart) = (
@@ -734,6 +738,7 @@ impl World {
             }
             (touches, apart)
         });
+        self.broad = broad;
         self.separations = Separations(
             chunks
                 .iter_mut()
