@@ -231,17 +231,13 @@ impl StepTimes {
     }
 }
 
-/// What the narrow phase finds for one candidate pair.
-enum Outcome {
-    Touch(Touch),
-    Apart(Gap),
-}
-
-/// Gap proofs of the last step, ascending by pair, in the chunks the narrow phase made them in
-/// (copying them into one list took 4 % of a step on 2 threads, most of it reading what the
-/// other core had written). No chunk is empty.
+/// Gap proofs, one slot per pair of the broad phase's kept list ([`Broad::candidates`]), in
+/// its order: a step updates them in place. (Made anew each step, the list of the pairs proven
+/// apart was copied forward whole, 2 MB a step on the 2000 I_P bed, most of it unchanged: 3 % of
+/// a step's time in the copy alone.) A slot may hold a proof from any earlier step: whether it
+/// still holds is checked by the bodies' motion since, every time it is used.
 #[derive(Clone, Debug, Default)]
-struct Separations(Vec<Vec<Gap>>);
+struct Separations(Vec<Option<Gap>>);
 
 /// A pair `(i, j)`, `i < j`, proven apart: the proof, the supports it ended on, and where both
 /// bodies were when it was made.
@@ -284,37 +280,21 @@ impl Placed {
 }
 
 impl Separations {
-    /// Where pair `(i, j)`'s proof is or would go: (chunk, position in it).
-    fn lower_bound(&self, pair: (u32, u32)) -> (usize, usize) {
-        let k = self
-            .0
-            .partition_point(|chunk| chunk.last().is_some_and(|last| last.pair < pair));
-        let e = self
-            .0
-            .get(k)
-            .map_or(0, |c| c.partition_point(|g| g.pair < pair));
-        (k, e)
+    /// Slots for a new kept list `listed` (ascending), each with its pair's proof from these
+    /// slots, if any (theirs are ascending by pair too).
+    fn realigned(&self, listed: &[(u32, u32)]) -> Separations {
+        let mut old = self.0.iter().flatten().peekable();
+        let slot = |&pair: &(u32, u32)| {
+            while old.next_if(|g| g.pair < pair).is_some() {}
+            old.next_if(|g| g.pair == pair).copied()
+        };
+        Separations(listed.iter().map(slot).collect())
     }
 
-    /// The gap proof of `pair` from last step, looked for from `*at` on (at most `pair`'s
-    /// [`Separations::lower_bound`]), which then moves to `pair`'s place: the pairs of a chunk
-    /// of the narrow phase, ascending, find theirs by one walk.
-    fn seek(&self, at: &mut (usize, usize), pair: (u32, u32)) -> Option<&Gap> {
-        loop {
-            let chunk = self.0.get(at.0)?;
-            match chunk.get(at.1) {
-                Some(g) if g.pair < pair => at.1 += 1,
-                Some(g) => return (g.pair == pair).then_some(g),
-                None => *at = (at.0 + 1, 0),
-            }
-        }
-    }
-
-    /// The gap proof of pair `(i, j)` from last step.
+    /// The gap proof of pair `(i, j)` kept, if any.
     #[cfg(test)]
     fn get(&self, pair: (u32, u32)) -> Option<&Gap> {
-        let mut at = self.lower_bound(pair);
-        self.seek(&mut at, pair)
+        self.0.iter().flatten().find(|g| g.pair == pair)
     }
 }
 
@@ -649,11 +629,15 @@ impl World {
         let par = parallel(self.bodies.len());
         let boxes: Vec<Aabb> = posed.iter().map(|p| (p.lo, p.hi)).collect();
         let mut broad = std::mem::take(&mut self.broad);
-        let pairs = broad.candidates(&boxes, par);
+        let (pairs, swept) = broad.candidates(&boxes, par);
+        let mut gaps = std::mem::take(&mut self.separations);
+        if swept || gaps.0.len() != pairs.len() {
+            gaps = gaps.realigned(pairs);
+        }
         self.times.broad += lap();
         // `at`: where this chunk's walk over the contact list is (see `Contacts::seek`).
-        // `gap_at`: the same over the gap proofs (`Separations::seek`).
-        let narrow = |&(i, j): &(u32, u32), at: &mut usize, gap_at: &mut (usize, usize)| {
+        // `slot`: the pair's gap proof, kept or made here (a contact leaves none).
+        let narrow = |&(i, j): &(u32, u32), at: &mut usize, slot: &mut Option<Gap>| {
             let (pi, pj) = (&posed[i as usize], &posed[j as usize]);
             if !overlap_boxes(&(pi.lo, pi.hi), &(pj.lo, pj.hi)) {
                 return None;
@@ -677,26 +661,26 @@ impl World {
                 }
                 None => {
                     let line = centre_line(pi, pj);
-                    let last = self.separations.seek(gap_at, (i, j));
-                    if let Some(gap) = last {
+                    if let Some(gap) = slot {
                         // Still apart when the two bodies' motion since the proof is less than
                         // its spare distance: the pair is then more than the proof's margin
                         // apart, where the full test answers the same (no contact).
                         let moved = gap.placed[0].moved(bi, si.radius * bi.scale)
                             + gap.placed[1].moved(bj, sj.radius * bj.scale);
                         if moved < gap.proof.spare {
-                            return Some(Outcome::Apart(*gap));
+                            return None;
                         }
                     }
                     let (start, mut hints) =
-                        last.map_or((line, Hints::default()), |g| (g.proof.axis, g.hints));
+                        slot.map_or((line, Hints::default()), |g| (g.proof.axis, g.hints));
                     if let Some(proof) = gap_proof(si, pi, sj, pj, &start, &mut hints) {
-                        return Some(Outcome::Apart(Gap {
+                        *slot = Some(Gap {
                             pair: (i, j),
                             proof,
                             hints,
                             placed: [Placed::of(bi), Placed::of(bj)],
-                        }));
+                        });
+                        return None;
                     }
                     // A new contact is clipped: finding a structure costs more than that,
                     // and pays only for contacts that last (the rule depends on the state
@@ -704,49 +688,44 @@ impl World {
                     overlap_kept(si, pi, sj, pj, &line, None, false)
                 }
             }?;
+            *slot = None;
             let va = bi.velocity_at(&o.centroid);
             let last = last.map(|(c, _)| c);
             let mut touch = self.touch(key, last, &o, va, self.material.friction);
             (touch.kept, touch.at) = (kept, *at);
-            Some(Outcome::Touch(touch))
+            Some(touch)
         };
-        // Each chunk of pairs keeps its own touches and gaps, so no thread copies another's
-        // results into one list (that copy was 4 % of a step on 2 threads): the touches are
-        // then referenced in pair order.
+        // Each chunk of pairs keeps its own touches, so no thread copies another's results into
+        // one list (that copy was 4 % of a step on 2 threads): the touches are then referenced
+        // in pair order.
         let contacts = &self.contacts;
-        let mut chunks = map_chunks_maybe_par(pairs, par, |chunk| {
-            // Room for every pair in either list: growing them by doubling (realloc copies of
-            // 200-byte items) was 6 % of a step's instructions on the 2000 I_P bed.
-            let (mut touches, mut apart) = (
-                Vec::with_capacity(chunk.len()),
-                Vec::with_capacity(chunk.len()),
-            );
-            let (mut at, mut gap_at) = chunk.first().map_or((0, (0, 0)), |&(i, j)| {
-                (
-                    contacts.lower_bound(&(Partner::Body(i), j)),
-                    self.separations.lower_bound((i, j)),
-                )
-            });
-            for outcome in chunk
-                .iter()
-                .filter_map(|pair| narrow(pair, &mut at, &mut gap_at))
-            {
-                match outcome {
-                    Outcome::Touch(t) => touches.push(t),
-                    Outcome::Apart(gap) => apart.push(gap),
-                }
+        let chunk = |(pairs, slots): (&[(u32, u32)], &mut [Option<Gap>])| {
+            // Room for every pair: growing the list by doubling (realloc copies of 200-byte
+            // items) was 6 % of a step's instructions on the 2000 I_P bed.
+            let mut touches = Vec::with_capacity(pairs.len());
+            let mut at = pairs
+                .first()
+                .map_or(0, |&(i, j)| contacts.lower_bound(&(Partner::Body(i), j)));
+            for (pair, slot) in pairs.iter().zip(slots) {
+                touches.extend(narrow(pair, &mut at, slot));
             }
-            (touches, apart)
-        });
+            touches
+        };
+        const CHUNK: usize = 256;
+        let chunks: Vec<Vec<Touch>> = if par {
+            (pairs.par_chunks(CHUNK))
+                .zip(gaps.0.par_chunks_mut(CHUNK))
+                .map(chunk)
+                .collect()
+        } else {
+            (pairs.chunks(CHUNK))
+                .zip(gaps.0.chunks_mut(CHUNK))
+                .map(chunk)
+                .collect()
+        };
         self.broad = broad;
-        self.separations = Separations(
-            chunks
-                .iter_mut()
-                .map(|(_, apart)| std::mem::take(apart))
-                .filter(|apart| !apart.is_empty())
-                .collect(),
-        );
-        let mut touches: Vec<&Touch> = chunks.iter().flat_map(|(t, _)| t).collect();
+        self.separations = gaps;
+        let mut touches: Vec<&Touch> = chunks.iter().flatten().collect();
         self.times.narrow += lap();
         let this = &*self;
         // By wall, then body: the order of the contact keys, so the touches come out sorted.
@@ -870,7 +849,7 @@ impl World {
             if *keep_structures {
                 let kept: Vec<Option<&[u32]>> = chunks
                     .iter()
-                    .flat_map(|(t, _)| t)
+                    .flatten()
                     .map(|t| match &t.kept {
                         Found::Kept => last_kept.get(t.at).map(|s| s.words()),
                         Found::New(s) => Some(s.packed().words()),
@@ -967,21 +946,6 @@ fn parallel(bodies: usize) -> bool {
     bodies >= PARALLEL_MIN_BODIES && rayon::current_num_threads() > 1
 }
 
-/// `f` over `items` in chunks of 256 (in parallel when `par`), the chunks' results in item
-/// order on any number of threads.
-fn map_chunks_maybe_par<T: Sync, U: Send>(
-    items: &[T],
-    par: bool,
-    f: impl Fn(&[T]) -> U + Sync + Send,
-) -> Vec<U> {
-    const CHUNK: usize = 256;
-    if par {
-        items.par_chunks(CHUNK).map(f).collect()
-    } else {
-        items.chunks(CHUNK).map(f).collect()
-    }
-}
-
 /// `filter_map` over `items`, in parallel when `par`; the result is in item order either way.
 fn filter_map_maybe_par<T: Sync, U: Send>(
     items: &[T],
@@ -1040,14 +1004,14 @@ mod tests {
     }
 
     #[test]
-    fn gap_proofs_are_found_across_their_chunks() {
+    fn gap_proofs_follow_their_pairs_to_a_new_kept_list() {
         let placed = Placed {
             pos: Vec3::zeros(),
             rot: UnitQuaternion::identity(),
             scale: 1.0,
             shape: 0,
         };
-        let gap = |i: u32, j: u32| Gap {
+        let gap = |(i, j): (u32, u32)| Gap {
             pair: (i, j),
             proof: GapProof {
                 axis: Vec3::new(i as f64, j as f64, 0.0),
@@ -1056,21 +1020,31 @@ mod tests {
             hints: Hints::default(),
             placed: [placed; 2],
         };
-        let chunks = vec![
-            vec![gap(0, 1), gap(0, 5), gap(2, 3)],
-            vec![gap(2, 9)],
-            vec![gap(4, 5), gap(7, 8)],
-        ];
-        let all: Vec<Gap> = chunks.concat();
-        let s = Separations(chunks);
-        for g in &all {
-            let found = s.get(g.pair).map(|f| f.proof.axis);
-            assert_eq!(found, Some(g.proof.axis), "{:?}", g.pair);
-        }
-        for missing in [(0, 0), (0, 2), (2, 4), (3, 0), (4, 4), (7, 9), (9, 9)] {
-            assert!(s.get(missing).is_none(), "{missing:?}");
-        }
-        assert!(Separations::default().get((0, 1)).is_none());
+        // The old list (0, 1) (0, 5) (2, 3) (2, 9) (4, 5) (7, 8), proofs for all but (2, 3).
+        let old = Separations(
+            [(0, 1), (0, 5), (2, 3), (2, 9), (4, 5), (7, 8)]
+                .into_iter()
+                .map(|p| (p != (2, 3)).then(|| gap(p)))
+                .collect(),
+        );
+        let listed = [(0, 0), (0, 5), (1, 2), (2, 3), (2, 9), (7, 8), (9, 9)];
+        let new = old.realigned(&listed);
+        let axes: Vec<Option<Vec3>> = new.0.iter().map(|g| g.map(|g| g.proof.axis)).collect();
+        let expected: Vec<Option<Vec3>> = listed
+            .iter()
+            .map(|&p| {
+                [(0, 5), (2, 9), (7, 8)]
+                    .contains(&p)
+                    .then(|| gap(p).proof.axis)
+            })
+            .collect();
+        assert_eq!(axes, expected);
+        assert!(Separations::default()
+            .realigned(&listed)
+            .0
+            .iter()
+            .all(Option::is_none));
+        assert!(old.realigned(&[]).0.is_empty());
     }
 
     #[test]
