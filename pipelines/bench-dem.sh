@@ -93,11 +93,16 @@ for n in "${sizes[@]}"; do
     done
   fi
 done
+# Each as the beds' ids come (the peer's order: at random in space) and renumbered along a
+# space-filling curve (`dem --renumber`, done before the timed steps).
 for n in "${nine[@]}"; do
   for bed in "nine$n:$n bed of the nine templates (ours)" "ab3nine$n:$n bed of their Ab_3 hulls (ours)"; do
     [ -f "$out/${bed%%:*}.jsonl" ] || continue
     for th in 1 2; do
       row "${bed#*:}" "$th" --steps "$steps" < "$out/${bed%%:*}.jsonl"
+    done
+    for th in 1 2; do
+      row "${bed#*:}, ids along space" "$th" --renumber --steps "$steps" < "$out/${bed%%:*}.jsonl"
     done
   done
 done

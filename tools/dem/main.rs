@@ -22,6 +22,7 @@ Examples:
   dem --abrade 3 --simplify 100 --steps 0 < examples/drop.jsonl      (Ab_3 hulls cut to 100 vertices)
   dem --time 0.3 --vtk out/drop --vtk-every 20000 < examples/drop.jsonl > /dev/null
   dem --until-unbalanced 1e-3 --time 2 < examples/drop.jsonl > settled.jsonl
+  dem --renumber --steps 0 < t2000.jsonl > t2000-sorted.jsonl   (ids along space: faster steps)
       then open out/drop/particles.pvd (and contacts.pvd, walls.pvd) in ParaView
 
 Scene format (JSON lines, version 1, SI units; docs/dem-state.md): a header, then records
@@ -108,6 +109,12 @@ struct Cli {
     /// vertices (the `simplify` tool's choice), inside it; bodies stay in place as with --abrade
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(4..))]
     simplify: Option<u32>,
+    /// Renumber the bodies along a space-filling (Morton) curve through their centroids before
+    /// running, contacts and all: neighbours in space get nearby ids, which makes a step faster
+    /// (the 2000-particle bed: 1.05-1.09x on 1 thread, 1.11-1.13x on 2). The state written has
+    /// the new ids; the scene is the same
+    #[arg(long)]
+    renumber: bool,
 }
 
 #[derive(Serialize)]
@@ -209,6 +216,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
             .simplify(n as usize)
             .map_err(|e| anyhow::anyhow!("--simplify: {e}"))?;
         world.dt = 0.0;
+    }
+    if args.renumber {
+        world.renumber_along_space();
     }
     for (name, value) in [("--kn", args.kn), ("--ks", args.ks)] {
         if let Some(k) = value {
