@@ -1,7 +1,7 @@
 //! The `pack` tool: broken input and arguments, and a small specimen that must meet the
 //! issue's final-state conditions (with the same bytes on 1 and 2 threads), in a cylinder and a box.
 
-use super::{fails, fixture, inside_out_cube, run, run_env};
+use super::{fails, fixture, inside_out_cube, ok, run, run_env};
 
 /// Runs pack on bad input: exit 1 (2 for usage), the message holds every needle, no output.
 fn rejects(args: &[&str], stdin: &[u8], code: i32, needles: &[&str]) {
@@ -256,6 +256,11 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
         on.status.success(),
         "{}",
         String::from_utf8_lossy(&on.stderr)
+    );
+    // Its bodies are numbered along space already: renumbering changes nothing.
+    assert_eq!(
+        ok("dem", &["--renumber", "--steps", "0"], &runs[0].0),
+        ok("dem", &["--steps", "0"], &runs[0].0)
     );
 }
 

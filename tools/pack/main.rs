@@ -455,6 +455,10 @@ fn run(args: Cli) -> anyhow::Result<()> {
         serde_json::to_writer(&mut f, &line)?;
         f.write_all(b"\n")?;
     }
+    // The specimen's bodies numbered along space (`dem --renumber`): the preparation draws
+    // them at random places, and a run from a state whose neighbours have far-apart ids is
+    // slower (the 2000-particle bed: 1.09x on 1 thread, 1.17x on 2). Only the ids change.
+    world.renumber_along_space();
     let mut out = cli::stdout();
     state::write_world(&world, &mut out)?;
     out.flush()?;
