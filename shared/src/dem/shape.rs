@@ -68,6 +68,9 @@ pub struct Climb {
     /// [`START_CELLS`] x [`START_CELLS`] cells on each of the six faces), the vertex farthest
     /// along the cell's central direction. A climb from there is a step or two.
     starts: Vec<u32>,
+    /// The face planes by columns (normals' x, y, z and the offsets), for scans over all of
+    /// them that the compiler can vectorize ([`Climb::plane_distances`]).
+    planes: [Vec<f64>; 4],
 }
 
 /// Cells along each edge of a face of [`Climb`]'s cube map of directions.
@@ -89,13 +92,14 @@ fn start_cell(d: &Vec3) -> usize {
 
 impl Climb {
     /// The graph of a shape with `vertices` and faces (compressed rows, with the faces around
-    /// each vertex), or `None` below [`CLIMB_MIN`] vertices.
+    /// each vertex, and their planes `n . x <= d`), or `None` below [`CLIMB_MIN`] vertices.
     pub fn of(
         vertices: &[Vec3],
         face_start: &[u32],
         face_verts: &[u32],
         vertex_face_start: &[u32],
         vertex_faces: &[u32],
+        (normals, offsets): (&[Vec3], &[f64]),
     ) -> Option<Climb> {
         if vertices.len() < CLIMB_MIN {
             return None;
@@ -136,11 +140,25 @@ impl Climb {
                     .unwrap_or(0) as u32
             })
             .collect();
+        let column = |k: usize| normals.iter().map(|n| n[k]).collect();
         Some(Climb {
             neighbor_start,
             neighbors,
             starts,
+            planes: [column(0), column(1), column(2), offsets.to_vec()],
         })
+    }
+
+    /// How far the point `local` (shape frame) lies inside each face plane of the shape at
+    /// `scale`, into `out`: `scale d_f - n_f . local`, world units (a body's offsets scale with
+    /// it, its normals do not).
+    pub fn plane_distances(&self, local: &Vec3, scale: f64, out: &mut Vec<f64>) {
+        let [x, y, z, d] = &self.planes;
+        out.clear();
+        out.extend(
+            (x.iter().zip(y).zip(z).zip(d))
+                .map(|(((x, y), z), d)| d * scale - (x * local.x + y * local.y + z * local.z)),
+        );
     }
 
     /// A vertex near the top along `d` (world) for a body turned by `rot`: where to climb from.
@@ -190,7 +208,7 @@ impl Shape {
             .map(|v| rot.transpose() * (v - props.centroid))
             .collect();
         let normals: Vec<Vec3> = h.planes.iter().map(|(n, _)| rot.transpose() * n).collect();
-        let offsets = h
+        let offsets: Vec<f64> = h
             .planes
             .iter()
             .map(|(n, d)| d - n.dot(&props.centroid))
@@ -204,6 +222,7 @@ impl Shape {
             &h.mesh.face_verts,
             &vertex_face_start,
             &vertex_faces,
+            (&normals, &offsets),
         );
         Ok(Shape {
             name: mesh.name.clone(),

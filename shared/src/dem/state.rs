@@ -652,12 +652,14 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
         let face_start = std::mem::take(&mut mesh.face_start);
         let face_verts = std::mem::take(&mut mesh.face_verts);
         let (vertex_face_start, vertex_faces) = super::shape::incidence(&face_start, &face_verts);
+        let normals: Vec<Vec3> = p.normals.iter().map(v3).collect();
         let climb = super::shape::Climb::of(
             &mesh.vertices,
             &face_start,
             &face_verts,
             &vertex_face_start,
             &vertex_faces,
+            (&normals, &p.offsets),
         );
         return Ok(Shape {
             name: s.name,
@@ -666,7 +668,7 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
             face_verts,
             vertex_face_start,
             vertex_faces,
-            normals: p.normals.iter().map(v3).collect(),
+            normals,
             offsets: p.offsets,
             volume: p.volume,
             moments: v3(&p.moments),

@@ -153,10 +153,53 @@ impl<'a> Pair<'a> {
         n.dot(p) - d < -self.margin
     }
 
-    /// World planes of every face of body `side`.
-    fn all_planes(&self, side: u8) -> Vec<(Vec3, f64)> {
-        let count = self.shapes[side as usize].face_count() as u32;
-        (0..count).map(|f| self.plane(side, f)).collect()
+    /// How far `p` (world) lies inside each face plane of body `side`, by a scan in the body's
+    /// own frame over its shape's planes (posing all ~1 500 planes of an Ab_3 hull for it, a
+    /// rotation each, was most of the cost of finding a large pair's structure). Calls
+    /// `near(f)`, ascending, for each face whose plane `p` may be nearer to than
+    /// [`NEAR_REL`] x size (to round-off: the caller checks those in world coordinates, as
+    /// [`Pair::vertex_inside`] will), and returns the least distance inside the others, less
+    /// its round-off (infinite when there are none). Distances of the frame change's
+    /// round-off, ~1e-16 of the positions, are far inside the allowance of 1e-3 x the margin.
+    fn far_clearance(&self, side: u8, p: &Vec3, mut near: impl FnMut(u32)) -> f64 {
+        let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
+        let local = posed.rot.inverse_transform_vector(&(p - posed.pos));
+        let slack = 1e-3 * self.margin;
+        let limit = self.near + slack;
+        let Some(climb) = &s.climb else {
+            // Small shapes have their planes posed, and few of them.
+            let mut far = f64::INFINITY;
+            for f in 0..s.face_count() as u32 {
+                let (n, d) = self.plane(side, f);
+                let inside = d - n.dot(p);
+                if inside < limit {
+                    near(f);
+                } else {
+                    far = far.min(inside);
+                }
+            }
+            return far - slack;
+        };
+        DISTANCES.with_borrow_mut(|dist| {
+            climb.plane_distances(&local, posed.scale, dist);
+            // Blocks of 8 with none near take their least at once.
+            let mut far = f64::INFINITY;
+            for (k, block) in dist.chunks(8).enumerate() {
+                let least = block.iter().fold(f64::INFINITY, |a, &v| a.min(v));
+                if least >= limit {
+                    far = far.min(least);
+                    continue;
+                }
+                for (j, &inside) in block.iter().enumerate() {
+                    if inside < limit {
+                        near((8 * k + j) as u32);
+                    } else {
+                        far = far.min(inside);
+                    }
+                }
+            }
+            far - slack
+        })
     }
 
     /// The sum of the two bodies' [`motion_bound`]s since `found_at` (for any point within
@@ -273,7 +316,6 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
     let mut edges: Vec<(u32, u32)> = Vec::new();
     let mut clearance = f64::INFINITY;
     let mut near: Vec<(Corner, u32)> = Vec::new();
-    let mut planes_of: [Option<Vec<(Vec3, f64)>>; 2] = [None, None];
     let (mut ends, mut dist): (Vec<u32>, Vec<f64>) = (Vec::new(), Vec::new());
     // The planes of each body's faces that meet the slab.
     let slab = |side: u8| -> Vec<(Vec3, f64)> {
@@ -292,26 +334,19 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
                 continue;
             };
             if pair.large[1 - side as usize] {
-                // Checked here against every plane (with the test `Pair::vertex_inside` puts to
-                // the near ones later), and later by its clearance. First the faces that meet
-                // the slab: most vertices in the slab fail one of those.
+                // Checked here against every plane: the near ones with the test
+                // `Pair::vertex_inside` puts to them later, the others by their distance, and
+                // later by its clearance. First the faces that meet the slab: most vertices in
+                // the slab fail one of those.
                 if !planes.iter().all(|pl| pair.inside_plane(pl, &p)) {
                     continue;
                 }
-                let all =
-                    planes_of[1 - side as usize].get_or_insert_with(|| pair.all_planes(1 - side));
-                let (listed, mut far) = (near.len(), f64::INFINITY);
-                let inside_all = all.iter().enumerate().all(|(f, pl)| {
-                    let (n, d) = pl;
-                    let inside = d - n.dot(&p);
-                    if inside < pair.near {
-                        near.push((c, f as u32));
-                    } else if inside < far {
-                        far = inside;
-                    }
-                    pair.inside_plane(pl, &p)
+                let (listed, mut inside) = (near.len(), true);
+                let far = pair.far_clearance(1 - side, &p, |f| {
+                    inside &= pair.vertex_inside(1 - side, f, &p);
+                    near.push((c, f));
                 });
-                if !inside_all {
+                if !inside {
                     near.truncate(listed);
                     continue;
                 }
@@ -493,6 +528,8 @@ impl Structure {
 }
 
 thread_local! {
+    /// A point's distances to a large shape's planes ([`Pair::far_clearance`]).
+    static DISTANCES: std::cell::RefCell<Vec<f64>> = std::cell::RefCell::default();
     static CORNERS: std::cell::RefCell<(Vec<Vec3>, Vec<Vec3>)> = std::cell::RefCell::default();
 }
 
