@@ -219,9 +219,10 @@ pub struct StepTimes {
     pub narrow: f64,
     /// Body-wall contacts.
     pub walls: f64,
-    /// Adding the contact forces to the bodies, the contact list, the energy sums.
+    /// Listing each body's contacts, in the order its forces are summed.
     pub assembly: f64,
-    /// Damping, kick, drift and rotation.
+    /// Each body's forces summed, damping, kick, drift and rotation, with the contact list,
+    /// the walls' loads and the energy sums made beside them (the two run side by side).
     pub integration: f64,
 }
 
