@@ -24,7 +24,7 @@
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
 
 use super::broad::{overlap as overlap_boxes, Aabb, Broad};
-use super::contacts::Contacts;
+use super::contacts::{Carry, Contacts};
 use super::gjk::Hints;
 use super::overlap::{centre_line, gap_proof, overlap_kept, Found, GapProof, Overlap};
 use super::shape::{motion_bound, Posed, Remade, Shape};
@@ -198,8 +198,7 @@ pub struct World {
     /// Scratch of the broad phase, kept between steps: the posed bodies (for their buffers)
     /// and the kept list of pairs. Not part of the state (only speed depends on it).
     posed: Vec<Posed>,
-    /// The words of the structures the contacts kept a step ago, for the next step's
-    /// ([`Contacts::keep`]).
+    /// A spare buffer for the kept structures' words when [`Contacts::keep`] compacts them.
     kept_buffer: Vec<u32>,
     broad: Broad,
     /// Whether contacts keep their overlap's structure for the next step ([`super::structure`]).
@@ -918,19 +917,18 @@ impl World {
             *contacts = Contacts::from_sorted(touches, par, |t| t.key, |t| t.contact.clone());
             // The structures move on with their contacts (body pairs come first in key order).
             if *keep_structures {
-                let kept: Vec<Option<&[u32]>> = chunks
+                let carry: Vec<Carry> = chunks
                     .iter()
                     .flatten()
                     .map(|t| match &t.kept {
-                        Found::Kept => last_kept.get(t.at).map(|s| s.words()),
-                        Found::New(s) => Some(s.packed().words()),
-                        Found::None => None,
+                        Found::Kept => Carry::Kept(t.at),
+                        Found::New(s) => Carry::New(s.packed().words()),
+                        Found::None => Carry::None,
                     })
                     .collect();
-                let buffer = std::mem::take(kept_buffer);
-                contacts.keep(&kept, buffer, par);
+                let spare = std::mem::take(kept_buffer);
+                *kept_buffer = contacts.keep(last_kept, &carry, spare, par);
             }
-            *kept_buffer = last_kept.into_buffer();
             energy.elastic = elastic;
             energy.wall_work += wall_work;
             contact_force / touches.len() as f64
