@@ -1239,6 +1239,91 @@ pub fn calibrate(
     })
 }
 
+/// The sample's void ratio at preparation friction `f` by its calibration `runs`, linear in
+/// the square root of the friction between the runs on either side (the ends carried flat
+/// beyond the first and last).
+fn sample_void_ratio(runs: &[(f64, f64)], f: f64) -> f64 {
+    let mut sorted = runs.to_vec();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let x = f.sqrt();
+    match sorted.iter().position(|r| r.0 >= f) {
+        None => sorted.last().map_or(f64::NAN, |r| r.1),
+        Some(0) => sorted[0].1,
+        Some(k) => {
+            let ((f0, e0), (f1, e1)) = (sorted[k - 1], sorted[k]);
+            let (x0, x1) = (f0.sqrt(), f1.sqrt());
+            e0 + (e1 - e0) * (x - x0) / (x1 - x0)
+        }
+    }
+}
+
+/// The preparation friction at which the sample's calibration `runs` give void ratio
+/// `target`: between the two runs whose void ratios bracket it, by [`next_friction`] (the
+/// sample's curve rises with friction; runs that do not are passed over); the nearest end's
+/// friction when none do.
+fn sample_friction(runs: &[(f64, f64)], target: f64) -> f64 {
+    let mut sorted = runs.to_vec();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for w in sorted.windows(2) {
+        let (lo, hi) = (w[0], w[1]);
+        if lo.1 <= target && target <= hi.1 && lo.1 < hi.1 {
+            return next_friction(lo, hi, target);
+        }
+    }
+    let first = sorted.first().copied().unwrap_or((0.0, 0.0));
+    let last = sorted.last().copied().unwrap_or(first);
+    if target < first.1 {
+        first.0
+    } else {
+        last.0
+    }
+}
+
+/// Full-scale compactions that correct the friction a sample chose ([`calibrate`]) for limits
+/// measured at the specimen's own size.
+#[derive(Clone, Debug, Serialize)]
+pub struct Refinement {
+    /// The target void ratio at full scale: `e_max - Dr (e_max - e_min)` of the given limits.
+    pub target: f64,
+    /// Each full-scale compaction: (preparation friction, void ratio), in the order run.
+    pub runs: Vec<(f64, f64)>,
+    /// The friction the specimen is made at.
+    pub prep_friction: f64,
+}
+
+/// Corrects `calibration`'s friction for the specimen's own `limits` (e_min, e_max at its size)
+/// by `runs` compactions of the specimen itself. The specimen packs denser than the sample at
+/// any friction (its wall is a smaller share), by about the same void ratio over the range
+/// that matters (I_P, session 16: 0.068 at friction 0.1, 0.073 at 0.067): each run measures
+/// that offset at the friction it was made at, and the next friction is the one at which the
+/// sample's curve (its calibration runs) reaches the full-scale target plus the offset.
+#[allow(clippy::too_many_arguments)]
+pub fn refine(
+    templates: &[Shape],
+    p: &Params,
+    calibration: &Calibration,
+    limits: (f64, f64),
+    runs: usize,
+    every: u64,
+    mut report: impl FnMut(f64, &Status),
+) -> Result<Refinement, PackError> {
+    let (e_min, e_max) = limits;
+    let target = e_max - calibration.relative_density * (e_max - e_min);
+    let mut f = calibration.prep_friction;
+    let mut done = Vec::with_capacity(runs);
+    for _ in 0..runs {
+        let (_, e) = compacted(templates, p, f, every, &mut report)?;
+        done.push((f, e));
+        let offset = e - sample_void_ratio(&calibration.runs, f);
+        f = sample_friction(&calibration.runs, target - offset);
+    }
+    Ok(Refinement {
+        target,
+        runs: done,
+        prep_friction: f,
+    })
+}
+
 /// What a specimen is: the summary `pack` reports.
 #[derive(Clone, Debug, Serialize)]
 pub struct Summary {
@@ -1392,6 +1477,27 @@ pub fn summary(w: &World, p: &Params) -> Summary {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_sample_curve_is_read_both_ways_in_the_square_root_of_the_friction() {
+        // Session 16's Ab_1 sample: limits and two runs, out of order as they are run.
+        let runs = [(0.0, 0.566), (1.0, 0.959), (0.04, 0.616), (0.072, 0.672)];
+        assert_eq!(sample_void_ratio(&runs, 0.04), 0.616);
+        assert_eq!(sample_void_ratio(&runs, 0.0), 0.566);
+        assert_eq!(sample_void_ratio(&runs, 2.0), 0.959);
+        // Between 0.04 and 0.072, linear in sqrt(f).
+        let f = ((0.04f64.sqrt() + 0.072f64.sqrt()) / 2.0).powi(2);
+        assert!((sample_void_ratio(&runs, f) - 0.644).abs() < 1e-12);
+        // And back.
+        assert!((sample_friction(&runs, 0.644) - f).abs() < 1e-12);
+        for e in [0.57, 0.6, 0.65, 0.7, 0.9] {
+            let back = sample_void_ratio(&runs, sample_friction(&runs, e));
+            assert!((back - e).abs() < 1e-12, "{e} came back {back}");
+        }
+        // Outside the sample's range: its ends.
+        assert_eq!(sample_friction(&runs, 0.5), 0.0);
+        assert_eq!(sample_friction(&runs, 1.2), 1.0);
+    }
 
     #[test]
     fn next_friction_interpolates_in_the_square_root_and_stays_in_the_bracket() {

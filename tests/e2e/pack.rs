@@ -115,6 +115,13 @@ fn pack_rejects_broken_templates_and_arguments() {
         2,
         &["invalid value 'sphere'"],
     );
+    // Refining the friction needs the target and the limits at full size.
+    rejects(
+        &["--refine-runs", "1", "--relative-density", "0.8"],
+        &nine,
+        2,
+        &["--void-ratio-limits"],
+    );
     // Too few steps to settle: a clear error, and no half-made specimen on standard output.
     rejects(
         &[
@@ -285,6 +292,8 @@ fn limits_measured_alone_are_the_calibrations_and_given_limits_set_the_reported_
             "0",
             "--void-ratio-limits",
             "0.9,1.8",
+            "--refine-runs",
+            "1",
             "--summary",
             path.to_str().unwrap(),
         ])
@@ -315,9 +324,16 @@ fn limits_measured_alone_are_the_calibrations_and_given_limits_set_the_reported_
     std::fs::remove_dir_all(&dir).ok();
     let c = &s["calibration"];
     assert_eq!((field(c, "e_min"), field(c, "e_max")), (e_min, e_max));
-    // The friction from the sample's own limits; Dr against the given ones.
+    // The sample's friction from its own limits, corrected by one compaction of the specimen
+    // for the given ones; Dr against the given ones.
+    let r = &s["refinement"];
+    assert_eq!(field(r, "target"), 1.8 - 0.5 * (1.8 - 0.9));
+    let runs = r["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 1);
+    assert_eq!(runs[0][0].as_f64(), Some(field(c, "prep_friction")));
     let f = field(&s, "prep_friction");
-    assert!(f > 0.0 && f < 1.0, "preparation friction {f}");
+    assert_eq!(f, field(r, "prep_friction"));
+    assert!((0.0..=1.0).contains(&f), "preparation friction {f}");
     assert_eq!((field(&s, "e_min"), field(&s, "e_max")), (0.9, 1.8));
     let dr = (1.8 - field(&s, "void_ratio")) / (1.8 - 0.9);
     assert!((field(&s, "relative_density") - dr).abs() < 1e-12);

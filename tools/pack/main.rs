@@ -16,6 +16,8 @@ Examples:
   pack --relative-density 0.8 < nine.obj > dr08.jsonl     (calibrates on a half-size sample first)
   pack --limits-only --calibration-scale 1 < nine.obj > limits.json   (e_min, e_max at full size)
   pack --relative-density 0.8 --void-ratio-limits 0.618,1.175 < nine.obj > dr08.jsonl
+  pack --relative-density 0.8 --void-ratio-limits 0.618,1.175 --refine-runs 1 < nine.obj > dr08.jsonl
+      (the sample's friction corrected by one compaction at full size: Dr nearer 0.8)
   pack --container box --width 0.2 --depth 0.2 --height 0.4 < nine.obj > box.jsonl
   pack ... | dem --steps 1000 > later.jsonl      (the specimen is a dem state: it runs on)
 
@@ -123,6 +125,17 @@ struct Cli {
     /// friction
     #[arg(long, value_name = "E_MIN,E_MAX", value_parser = parse_limits)]
     void_ratio_limits: Option<(f64, f64)>,
+    /// With --relative-density and --void-ratio-limits: N compactions of the specimen itself
+    /// that correct the sample's friction for the given limits (the specimen packs denser than
+    /// the sample, by about the same void ratio at any friction: each run measures that offset
+    /// and the sample's curve gives the next friction). Each costs about half a specimen
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 0,
+        requires_all = ["relative_density", "void_ratio_limits"]
+    )]
+    refine_runs: usize,
     /// Measure the void-ratio limits alone, on the container scaled by --calibration-scale
     /// (1: the specimen's own), and write them to standard output as one JSON line instead of
     /// a specimen
@@ -200,8 +213,13 @@ struct Cli {
 
 /// One progress line of a calibration or limits run at preparation friction `f`.
 fn report_calibration(f: f64, s: &pack::Status) {
+    report_run("calibration", f, s)
+}
+
+/// One progress line of a run of `what` at preparation friction `f`.
+fn report_run(what: &str, f: f64, s: &pack::Status) {
     eprintln!(
-        "pack: calibration at friction {f:.4}, {} step {}: wall stresses {} Pa, porosity {:.4}, unbalanced {:.3e}",
+        "pack: {what} at friction {f:.4}, {} step {}: wall stresses {} Pa, porosity {:.4}, unbalanced {:.3e}",
         s.phase, s.step, stresses(&s.stresses), s.porosity, s.unbalanced
     )
 }
@@ -377,6 +395,26 @@ fn run(args: Cli) -> anyhow::Result<()> {
         }
         None => None,
     };
+    let refinement = match (&calibration, limits) {
+        (Some(c), Some(given)) if args.refine_runs > 0 => {
+            let r = pack::refine(
+                &shapes,
+                &params,
+                c,
+                given,
+                args.refine_runs,
+                args.every,
+                |f, s| report_run("refinement", f, s),
+            )?;
+            eprintln!(
+                "pack: refinement at full size: target e {:.4}, runs {:?}; preparation friction {:.4}",
+                r.target, r.runs, r.prep_friction
+            );
+            params.prep_friction = r.prep_friction;
+            Some(r)
+        }
+        _ => None,
+    };
     let mut world = pack::cloud(shapes, &params)?;
     let prep_dt = world.dt;
     let cloud = pack::container(&world).context("the loose cloud has no container")?;
@@ -435,6 +473,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
     }
     if let Some(c) = &calibration {
         line["calibration"] = serde_json::to_value(c)?;
+    }
+    if let Some(r) = &refinement {
+        line["refinement"] = serde_json::to_value(r)?;
     }
     let specimen = pack::container(&world).context("the specimen has no container")?;
     eprintln!(
