@@ -69,7 +69,7 @@ pub fn solid(obj: &ObjObject) -> anyhow::Result<crate::mass::MassProps> {
     let props = crate::mass::MassProps::of(&obj.mesh);
     // Flat: no volume against the cube of its extent, to round-off.
     let extent = crate::math::extent(&obj.mesh.vertices);
-    if props.volume.abs() <= 1e-12 * extent.powi(3) {
+    if props.volume.abs() <= 1e-12 * crate::math::cube(extent) {
         anyhow::bail!(
             "{}: encloses no volume ({:e}); a particle must be a solid",
             what(),

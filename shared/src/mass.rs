@@ -268,7 +268,10 @@ mod tests {
         use std::f64::consts::PI;
         // Regular tetrahedron: S3D = (36 pi V^2)^(1/3) / A with V = a^3/(6 sqrt 2), A = sqrt3 a^2.
         let a: f64 = 8f64.sqrt();
-        let (v, ar) = (a.powi(3) / (6.0 * 2f64.sqrt()), 3f64.sqrt() * a * a);
+        let (v, ar) = (
+            crate::math::cube(a) / (6.0 * 2f64.sqrt()),
+            3f64.sqrt() * a * a,
+        );
         let m = MassProps::of(&tetrahedron());
         assert_relative_eq!(m.volume, v, epsilon = 1e-12);
         assert_relative_eq!(m.s3d(), (36.0 * PI * v * v).cbrt() / ar, epsilon = 1e-12);
@@ -292,7 +295,7 @@ mod tests {
         assert_relative_eq!(moved.s3d(), base.s3d(), epsilon = 1e-12);
         assert_relative_eq!(
             moved.volume,
-            base.volume * 3.7f64.powi(3),
+            base.volume * crate::math::cube(3.7f64),
             max_relative = 1e-12
         );
         assert_relative_eq!(moved.centroid, Vec3::new(100.0, -5.0, 2.5), epsilon = 1e-9);

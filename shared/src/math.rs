@@ -13,6 +13,26 @@ pub fn unit_f64(bits: u64) -> f64 {
     (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
+/// `x * x`. With [`cube`] and [`pow5`], in place of `f64::powi`: its rounding is not
+/// specified, and in practice it depended on inlining (LLVM folds a call whose argument it
+/// knows with `pow`, and multiplies by repeated squaring otherwise), so one test scene moved
+/// differently after an unrelated change elsewhere in the crate. These multiply in the order
+/// the run-time `powi` did, so the numbers of runs from data are the same as before.
+pub fn square(x: f64) -> f64 {
+    x * x
+}
+
+/// `x * (x * x)`: see [`square`].
+pub fn cube(x: f64) -> f64 {
+    x * (x * x)
+}
+
+/// `x * ((x * x) * (x * x))`: see [`square`].
+pub fn pow5(x: f64) -> f64 {
+    let x2 = x * x;
+    x * (x2 * x2)
+}
+
 /// Axis-aligned bounding box of points: (min, max). `None` for no points. Plain comparisons
 /// per coordinate (nalgebra's `inf`/`sup` cost several times more in the contact loop).
 pub fn bounding_box(points: &[Vec3]) -> Option<(Vec3, Vec3)> {

@@ -32,7 +32,7 @@ use crate::dem::shape::Shape;
 use crate::dem::wall::{Wall, WallKind};
 use crate::dem::world::{Material, Partner, World};
 use crate::mass::{clipped_volume, equivalent_diameter};
-use crate::math::{box_excess, Vec3};
+use crate::math::{box_excess, cube, square, Vec3};
 use nalgebra::{Quaternion, UnitQuaternion};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -522,7 +522,7 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
             p.size_min
         };
         let scale = size / p.size_measure.of(s);
-        solid += s.volume * scale.powi(3);
+        solid += s.volume * cube(scale);
         picks.push((shape, scale));
     }
     // The largest particle must fit the container.
@@ -595,8 +595,8 @@ pub fn scale_inertia(w: &mut World) {
         if b.fixed {
             continue;
         }
-        let rotation = (target / r).powi(2);
-        b.mass *= (target / t).powi(2);
+        let rotation = square(target / r);
+        b.mass *= square(target / t);
         b.moments *= rotation;
         b.ang_mom *= rotation;
     }
@@ -672,7 +672,7 @@ fn place(
                         grid.get(&(kx + dx, ky + dy, kz + dz)).is_none_or(|near| {
                             near.iter().all(|&j| {
                                 let d = poses[j].0 - c;
-                                d.norm_squared() > (r + radii[j] + gap).powi(2)
+                                d.norm_squared() > square(r + radii[j] + gap)
                                     || gjk::separated(&verts, &corners[j], &d, gap)
                             })
                         })
@@ -849,7 +849,7 @@ pub struct Status {
 fn solid_volume(w: &World) -> f64 {
     w.bodies
         .iter()
-        .map(|b| w.shapes[b.shape as usize].volume * b.scale.powi(3))
+        .map(|b| w.shapes[b.shape as usize].volume * cube(b.scale))
         .sum()
 }
 
@@ -916,7 +916,7 @@ pub fn core_porosity(w: &World, layer: f64) -> Option<f64> {
                 return 0.0;
             }
             if (planes.iter()).all(|(n, d)| box_excess(n, *d, &lo, &hi) <= 0.0) {
-                return s.volume * body.scale.powi(3);
+                return s.volume * cube(body.scale);
             }
             let faces: Vec<Vec<Vec3>> = (0..s.face_count())
                 .map(|f| {
@@ -1083,7 +1083,7 @@ pub fn next_friction(lo: (f64, f64), hi: (f64, f64), target: f64) -> f64 {
     } else {
         0.5
     };
-    (a + t * (b - a)).powi(2)
+    square(a + t * (b - a))
 }
 
 /// The container scaled by `scale` in each direction, with the same templates, sizes and seed
@@ -1101,7 +1101,7 @@ fn sample(p: &Params, scale: f64) -> Result<Params, PackError> {
         height: p.height * scale,
         count: p
             .count
-            .map(|n| ((n as f64 * scale.powi(3)).round() as usize).max(1)),
+            .map(|n| ((n as f64 * cube(scale)).round() as usize).max(1)),
         ..p.clone()
     })
 }
@@ -1486,7 +1486,7 @@ mod tests {
         assert_eq!(sample_void_ratio(&runs, 0.0), 0.566);
         assert_eq!(sample_void_ratio(&runs, 2.0), 0.959);
         // Between 0.04 and 0.072, linear in sqrt(f).
-        let f = ((0.04f64.sqrt() + 0.072f64.sqrt()) / 2.0).powi(2);
+        let f = crate::math::square((0.04f64.sqrt() + 0.072f64.sqrt()) / 2.0);
         assert!((sample_void_ratio(&runs, f) - 0.644).abs() < 1e-12);
         // And back.
         assert!((sample_friction(&runs, 0.644) - f).abs() < 1e-12);
@@ -1528,7 +1528,7 @@ mod tests {
     fn the_count_fills_the_container_at_the_porosity_in_equal_numbers() {
         let cube = Shape::from_mesh(&crate::mesh::cube(0.5)).unwrap();
         // The cylinder's cross-section is its 128 facets' polygon.
-        let polygon = 0.5 * 128.0 * 0.05f64.powi(2) * (2.0 * PI / 128.0).sin();
+        let polygon = 0.5 * 128.0 * crate::math::square(0.05f64) * (2.0 * PI / 128.0).sin();
         for (kind, section) in [(Container::Cylinder, polygon), (Container::Box, 0.1 * 0.08)] {
             let p = Params {
                 container: kind,
@@ -1546,7 +1546,7 @@ mod tests {
             let room = (1.0 - p.porosity) * section * 0.2;
             // Drawn until the solid fills it: over by less than two of the largest particles.
             assert!(
-                solid >= room && solid < room + 2.0 * 0.02f64.powi(3),
+                solid >= room && solid < room + 2.0 * crate::math::cube(0.02f64),
                 "{kind:?}: {solid} {room}"
             );
             // The cloud's container is the specimen's scaled alike in every direction, and holds
@@ -1695,7 +1695,7 @@ mod tests {
         for turn in [0.0, 0.3, PI / 4.0] {
             w.bodies[0].pos = middle;
             w.bodies[0].rot = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), turn);
-            let expected = 1.0 - 0.5 * side.powi(3) / core;
+            let expected = 1.0 - 0.5 * crate::math::cube(side) / core;
             let got = core_porosity(&w, layer).unwrap();
             assert!(
                 (got - expected).abs() < 1e-12,
@@ -1749,7 +1749,7 @@ mod tests {
                 let v = random_rotation(&mut rng) * z;
                 fabric += v * v.transpose();
             }
-            sum2 += anisotropy(&fabric, n).powi(2);
+            sum2 += crate::math::square(anisotropy(&fabric, n));
         }
         let rms = (sum2 / trials as f64).sqrt();
         let expected = 7.5 / (n as f64).sqrt();

@@ -180,7 +180,7 @@ impl Stats {
         let n = v.len();
         let mean = v.iter().sum::<f64>() / n as f64;
         let var = if n > 1 {
-            v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64
+            v.iter().map(|x| crate::math::square(x - mean)).sum::<f64>() / (n - 1) as f64
         } else {
             0.0
         };

@@ -367,7 +367,7 @@ fn draw_line(
                 0.0
             };
             let (qx, qy) = (a[0] + t * dx, a[1] + t * dy);
-            let dist = ((px - qx).powi(2) + (py - qy).powi(2)).sqrt();
+            let dist = (crate::math::square(px - qx) + crate::math::square(py - qy)).sqrt();
             if dist > thick / 2.0 {
                 continue;
             }

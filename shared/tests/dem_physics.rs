@@ -73,7 +73,7 @@ fn equal_cubes_face_to_face_restitution_contact_time_no_rotation() {
 
 /// A cube of side SIDE resting face-down on the floor z = 0, at its equilibrium overlap.
 fn resting_cube(w: &mut World, s: u32, z_base: f64) -> usize {
-    let m = w.material.density * SIDE.powi(3);
+    let m = w.material.density * shared::math::cube(SIDE);
     let sink = m * w.gravity.norm() / w.material.kn;
     w.add_body(
         s,
@@ -131,7 +131,7 @@ fn set_stiffness_scales_the_contacts_it_carries_over() {
     w.dt = 0.2 * w.critical_dt();
     w.step();
     let c = w.contacts.values().next().unwrap();
-    let flat = 0.5 * c.normal_force.powi(2) / w.material.kn;
+    let flat = 0.5 * shared::math::square(c.normal_force) / w.material.kn;
     assert!(
         (c.potential / flat - 1.0).abs() < 1e-6,
         "stored {} J vs Fn^2 / 2kn = {flat} J",
@@ -146,7 +146,7 @@ fn set_stiffness_scales_the_contacts_it_carries_over() {
 fn stack_of_five_cubes_stays_put() {
     let (mut w, s) = cube_world(Material::default(), Vec3::new(0.0, 0.0, -9.81));
     w.walls.push(Wall::plane(Vec3::zeros(), Vec3::z()));
-    let m = w.material.density * SIDE.powi(3);
+    let m = w.material.density * shared::math::cube(SIDE);
     let mut z = 0.0;
     for level in 0..5 {
         // Cube k carries the 4 - k above it: its two contacts sink by their loads.
@@ -193,7 +193,7 @@ fn incline(h: f64, theta: f64, mu: f64, damping: f64, ramp: f64, t: f64) -> (f64
     let mut w = World::new(material, Vec3::new(0.0, 0.0, -g));
     let s = w.add_shape(Shape::from_mesh(&cuboid(Vec3::new(0.5, 0.5, h / 2.0))).unwrap());
     w.walls.push(Wall::plane(Vec3::zeros(), Vec3::z()));
-    let m = w.material.density * SIDE.powi(3) * h;
+    let m = w.material.density * shared::math::cube(SIDE) * h;
     let sink = m * g / w.material.kn;
     let i = w.add_body(
         s,
@@ -504,7 +504,10 @@ fn abrading_a_world_keeps_each_body_in_place_inside_its_old_surface() {
         assert!(sn.vertices.len() > 3 * so.vertices.len());
         let ratio = sn.volume / so.volume;
         assert!(ratio > 0.1 && ratio < 1.0, "body {i}: volume ratio {ratio}");
-        assert_eq!(new.mass, w.material.density * sn.volume * new.scale.powi(3));
+        assert_eq!(
+            new.mass,
+            w.material.density * sn.volume * shared::math::cube(new.scale)
+        );
         assert_eq!(new.vel, old.vel);
         assert!(
             (new.omega() - old.omega()).norm() <= 1e-12 * old.omega().norm(),

@@ -57,7 +57,7 @@ proptest! {
         let params = polygen::Params { faces: k, max_elongation: f64::INFINITY, ..Default::default() };
         let mut m = polygen::generate(&params, seed, 1).unwrap().mesh;
         for v in &mut m.vertices {
-            *v *= 10f64.powi(scale);
+            *v *= 10f64.powf(f64::from(scale));
         }
         let text = obj::to_string(std::slice::from_ref(&m));
         let back = obj::read_all(text.as_bytes()).unwrap();

@@ -26,7 +26,7 @@ fn column_bed() -> Vec<u8> {
         r#"{"type":"shape","id":0,"name":"cube","vertices":[[-0.5,-0.5,-0.5],[0.5,-0.5,-0.5],[-0.5,0.5,-0.5],[0.5,0.5,-0.5],[-0.5,-0.5,0.5],[0.5,-0.5,0.5],[-0.5,0.5,0.5],[0.5,0.5,0.5]],"faces":[[0,2,3,1],[4,5,7,6],[0,1,5,4],[2,6,7,3],[0,4,6,2],[1,3,7,5]]}"#.to_string(),
         r#"{"type":"wall","id":0,"kind":"plane","normal":[0,0,1],"offset":0}"#.to_string(),
     ];
-    let (side, weight) = (0.02f64, 2600.0 * 0.02f64.powi(3) * 9.81);
+    let (side, weight) = (0.02f64, 2600.0 * shared::math::cube(0.02f64) * 9.81);
     let mut id = 0;
     for i in 0..4 {
         for j in 0..4 {

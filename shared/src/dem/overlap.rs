@@ -514,7 +514,7 @@ pub fn overlap_kept(
     };
     // |S_B| <= SWALLOWED_REL V^(2/3), cubed (no powf per contact).
     let a2 = o.area_b.norm_squared();
-    if a2 * a2.sqrt() <= SWALLOWED_REL.powi(3) * o.volume * o.volume {
+    if a2 * a2.sqrt() <= crate::math::cube(SWALLOWED_REL) * o.volume * o.volume {
         // One body (nearly) inside the other: S_B vanishes and gives no direction. Push apart
         // along the line of centroids, by the penetration along it (separating-axis overlap).
         o.area_b = swallowed(sa, a, sb, b, o.volume);

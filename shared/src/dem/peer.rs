@@ -228,7 +228,8 @@ mod tests {
         );
         for (i, (b, deq)) in w.bodies.iter().zip([0.01, 0.02, 0.03]).enumerate() {
             assert_eq!(b.shape as usize, i % 2);
-            let d = equivalent_diameter(w.shapes[b.shape as usize].volume * b.scale.powi(3));
+            let d =
+                equivalent_diameter(w.shapes[b.shape as usize].volume * crate::math::cube(b.scale));
             assert!((d - deq).abs() < 1e-12 * deq, "body {i}: {d} for {deq}");
         }
         // The particle's centroid: the tetrahedron of offsets (0.01, 0, 0), ... has its

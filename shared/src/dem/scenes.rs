@@ -86,7 +86,7 @@ pub fn box_scene(material: Material, safety: f64) -> World {
         let z = placed
             .iter()
             .filter_map(|(p, rj)| {
-                let dh2 = (p.x - x).powi(2) + (p.y - y).powi(2);
+                let dh2 = crate::math::square(p.x - x) + crate::math::square(p.y - y);
                 let reach = (r + rj) * 1.001;
                 (dh2 < reach * reach).then(|| p.z + (reach * reach - dh2).sqrt())
             })

@@ -605,7 +605,7 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 normal_force: c.normal_force,
                 potential: c
                     .potential
-                    .unwrap_or(0.5 * c.normal_force.powi(2) / world.material.kn),
+                    .unwrap_or(0.5 * crate::math::square(c.normal_force) / world.material.kn),
                 shear: v3(&c.shear),
                 sliding: c.sliding,
             },

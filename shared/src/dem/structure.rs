@@ -722,7 +722,7 @@ mod tests {
             let o = s.evaluate(&pair).expect("a discovered structure evaluates");
             let size = 2.0 * sa.radius.max(sb.radius);
             assert!(
-                (o.volume - clipped.volume).abs() <= 1e-12 * size.powi(3)
+                (o.volume - clipped.volume).abs() <= 1e-12 * crate::math::cube(size)
                     && (o.centroid - clipped.centroid).norm() <= 1e-9 * size
                     && (o.area_b - clipped.area_b).norm() <= 1e-12 * size * size,
                 "pose {t}: structure {o:?}, clipped {clipped:?}"
