@@ -68,9 +68,46 @@ pub struct Climb {
     /// [`START_CELLS`] x [`START_CELLS`] cells on each of the six faces), the vertex farthest
     /// along the cell's central direction. A climb from there is a step or two.
     starts: Vec<u32>,
-    /// The face planes by columns (normals' x, y, z and the offsets), for scans over all of
-    /// them that the compiler can vectorize ([`Climb::plane_distances`]).
+    /// The face planes by columns (normals' x, y, z and the offsets), for scans that the
+    /// compiler can vectorize, grouped by the cube-map cell of their normals
+    /// ([`Climb::clearances`]): group `g` is `groups[g].start..groups[g + 1].start`, its faces
+    /// `group_faces[..]`.
     planes: [Vec<f64>; 4],
+    group_faces: Vec<u32>,
+    groups: Vec<PlaneGroup>,
+    /// Per face, a sphere holding its polygon (shape frame): the vertices' mean and the
+    /// largest distance from it.
+    pub face_spheres: Vec<(Vec3, f64)>,
+}
+
+/// Face planes whose normals lie in a cone: a bound on how far inside them all a point is.
+#[derive(Clone, Debug)]
+struct PlaneGroup {
+    /// Where the group's planes start in [`Climb`]'s columns.
+    start: u32,
+    /// The cone: its axis (unit) and the cosine and sine of its half-angle.
+    axis: Vec3,
+    cos: f64,
+    sin: f64,
+    /// The least offset of the group's planes (shape frame).
+    offset: f64,
+}
+
+impl PlaneGroup {
+    /// A lower bound on `scale d_f - n_f . p` over the group's planes: the least offset less
+    /// the most any unit normal in the cone reaches along `p`, less a round-off allowance
+    /// far above that of the distances themselves.
+    fn least_inside(&self, p: &Vec3, norm: f64, scale: f64) -> f64 {
+        let along = self.axis.dot(p);
+        let reach = if along >= norm * self.cos {
+            norm
+        } else {
+            let across = (norm * norm - along * along).max(0.0).sqrt();
+            along * self.cos + across * self.sin
+        };
+        let d = self.offset * scale;
+        d - reach - 1e-12 * (d.abs() + norm)
+    }
 }
 
 /// Cells along each edge of a face of [`Climb`]'s cube map of directions.
@@ -140,25 +177,96 @@ impl Climb {
                     .unwrap_or(0) as u32
             })
             .collect();
-        let column = |k: usize| normals.iter().map(|n| n[k]).collect();
+        // Planes grouped by the cell of their normal, in face order within a group.
+        let mut group_faces: Vec<u32> = (0..normals.len() as u32).collect();
+        group_faces.sort_by_key(|&f| start_cell(&normals[f as usize]));
+        let groups: Vec<PlaneGroup> = group_faces
+            .chunk_by(|&f, &g| start_cell(&normals[f as usize]) == start_cell(&normals[g as usize]))
+            .scan(0u32, |start, members| {
+                let normal = |&f: &u32| normals[f as usize];
+                let axis = members.iter().map(normal).sum::<Vec3>().normalize();
+                // Padded: the cone holds every member's normal with room for round-off.
+                let cos = (members.iter().map(|f| axis.dot(&normal(f))))
+                    .fold(1.0f64, f64::min)
+                    .clamp(-1.0, 1.0)
+                    - 1e-9;
+                let group = PlaneGroup {
+                    start: *start,
+                    axis,
+                    cos,
+                    sin: (1.0 - cos * cos).max(0.0).sqrt(),
+                    offset: (members.iter().map(|&f| offsets[f as usize])).fold(f64::INFINITY, f64::min),
+                };
+                *start += members.len() as u32;
+                Some(group)
+            })
+            .collect();
+        let column = |k: usize| (group_faces.iter()).map(|&f| normals[f as usize][k]).collect();
+        let offsets: Vec<f64> = group_faces.iter().map(|&f| offsets[f as usize]).collect();
+        let face_spheres = (face_start.windows(2))
+            .map(|r| {
+                let corners = &face_verts[r[0] as usize..r[1] as usize];
+                let at = |&i: &u32| vertices[i as usize];
+                let mean = corners.iter().map(at).sum::<Vec3>() / corners.len() as f64;
+                let radius = (corners.iter().map(|i| (at(i) - mean).norm())).fold(0.0, f64::max);
+                (mean, radius)
+            })
+            .collect();
         Some(Climb {
             neighbor_start,
             neighbors,
             starts,
-            planes: [column(0), column(1), column(2), offsets.to_vec()],
+            planes: [column(0), column(1), column(2), offsets],
+            group_faces,
+            groups,
+            face_spheres,
         })
     }
 
-    /// How far the point `local` (shape frame) lies inside each face plane of the shape at
-    /// `scale`, into `out`: `scale d_f - n_f . local`, world units (a body's offsets scale with
-    /// it, its normals do not).
-    pub fn plane_distances(&self, local: &Vec3, scale: f64, out: &mut Vec<f64>) {
+    /// How far the point `local` (shape frame) lies inside the face planes of the shape at
+    /// `scale`, `scale d_f - n_f . local` in world units (a body's offsets scale with it, its
+    /// normals do not): calls `near(f)` for each face `f` it is less than `limit` inside (in
+    /// no particular order), and returns the least of the others (infinite when there are
+    /// none). A group of planes whose bound ([`PlaneGroup::least_inside`]) is at least `limit`
+    /// and at least the least found so far is not scanned: on an Ab_3 hull, for a point near
+    /// its surface, most of its ~1 500 planes face away.
+    pub fn clearances(
+        &self,
+        local: &Vec3,
+        scale: f64,
+        limit: f64,
+        mut near: impl FnMut(u32, f64),
+    ) -> f64 {
         let [x, y, z, d] = &self.planes;
-        out.clear();
-        out.extend(
-            (x.iter().zip(y).zip(z).zip(d))
-                .map(|(((x, y), z), d)| d * scale - (x * local.x + y * local.y + z * local.z)),
-        );
+        let norm = local.norm();
+        let end = |g: usize| self.groups.get(g + 1).map_or(d.len(), |n| n.start as usize);
+        let inside = |k: usize| d[k] * scale - (x[k] * local.x + y[k] * local.y + z[k] * local.z);
+        let mut far = f64::INFINITY;
+        let mut skipped = [0u64; 4];
+        // First the groups that may hold near planes, then the others while they can lower
+        // the least.
+        for (g, group) in self.groups.iter().enumerate() {
+            let bound = group.least_inside(local, norm, scale);
+            if bound >= limit {
+                skipped[g / 64] |= 1 << (g % 64);
+                continue;
+            }
+            for k in group.start as usize..end(g) {
+                let v = inside(k);
+                if v < limit {
+                    near(self.group_faces[k], v);
+                } else {
+                    far = far.min(v);
+                }
+            }
+        }
+        for (g, group) in self.groups.iter().enumerate() {
+            if skipped[g / 64] & 1 << (g % 64) == 0 || group.least_inside(local, norm, scale) >= far {
+                continue;
+            }
+            far = (group.start as usize..end(g)).map(inside).fold(far, f64::min);
+        }
+        far
     }
 
     /// A vertex near the top along `d` (world) for a body turned by `rot`: where to climb from.
@@ -593,6 +701,65 @@ mod tests {
         }
         for f in 0..s.face_count() {
             assert_eq!(lazy.plane(&s, f), full.plane(&s, f), "plane {f}");
+        }
+    }
+
+    /// [`Climb::clearances`] skips groups of planes by a bound: it must name the same near
+    /// planes, with the same distances, and give the same least distance of the others, to the
+    /// bit, as a scan over every plane. Points inside near the surface (where a contact's
+    /// vertices are), deep inside, and outside; limits from 0 to the whole body.
+    #[test]
+    fn grouped_plane_clearances_equal_a_full_scan() {
+        use crate::polygen::{generate, Params};
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for faces in [6, 9, 14] {
+            let params = Params {
+                faces,
+                ..Default::default()
+            };
+            let mesh = generate(&params, 5, 0).unwrap().mesh;
+            let topo = mesh.topology(None).unwrap();
+            let s = Shape::from_mesh(&crate::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
+            let climb = s.climb.as_ref().expect("a large hull");
+            for _ in 0..400 {
+                let v = s.vertices[rng.random_range(0..s.vertices.len())];
+                let depth = [1e-6, 1e-3, 0.05, 0.5, -0.01][rng.random_range(0..5)];
+                let p = v * (1.0 - depth);
+                let scale = 0.02;
+                let limit = scale * s.radius * [0.0, 1e-4, 5e-3, 0.1, 3.0][rng.random_range(0..5)];
+                let (mut near, mut far) = (Vec::new(), f64::INFINITY);
+                for (f, (n, d)) in s.normals.iter().zip(&s.offsets).enumerate() {
+                    let inside = d * scale - (n.x * p.x + n.y * p.y + n.z * p.z);
+                    if inside < limit {
+                        near.push((f as u32, inside));
+                    } else {
+                        far = far.min(inside);
+                    }
+                }
+                let mut got = Vec::new();
+                let least = climb.clearances(&p, scale, limit, |f, inside| got.push((f, inside)));
+                got.sort_by_key(|g| g.0);
+                assert_eq!(got, near, "faces {faces}, depth {depth}, limit {limit}");
+                assert_eq!(least.to_bits(), far.to_bits(), "faces {faces}, depth {depth}");
+            }
+        }
+    }
+
+    /// Each face's sphere holds its polygon.
+    #[test]
+    fn face_spheres_hold_their_faces() {
+        use crate::polygen::{generate, Params};
+        let mesh = generate(&Params::default(), 3, 0).unwrap().mesh;
+        let topo = mesh.topology(None).unwrap();
+        let s = Shape::from_mesh(&crate::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
+        let climb = s.climb.as_ref().expect("a large hull");
+        for f in 0..s.face_count() {
+            let (c, r) = climb.face_spheres[f];
+            for &v in s.face(f) {
+                assert!((s.vertices[v as usize] - c).norm() <= r * (1.0 + 1e-15), "face {f}");
+            }
+            assert!(r < 0.5 * s.radius, "face {f}: radius {r}");
         }
     }
 

@@ -43,9 +43,11 @@ use nalgebra::UnitQuaternion;
 /// Round-off in a corner is ~1e-16 x size.
 const MARGIN_REL: f64 = 1e-9;
 
-/// A vertex corner inside a large body is checked at every step against the planes it was
-/// nearer than this fraction of the pair's size to when found, and against the others by the
-/// bodies' motion since (on the Ab_3 500 bed at rest, 0.13 % of contact-steps use that up).
+/// A vertex corner inside a large body is checked against the planes it was nearer than this
+/// fraction of the pair's size to when found, and against the others by the bodies' motion
+/// since (on the Ab_3 500 bed at rest, 0.13 % of contact-steps use that up). A near plane, too,
+/// is only checked once the motion since could have used up the clearance it had (on the
+/// 2000 Ab_3 bed at rest, 8 % of near planes in 400 steps).
 const NEAR_REL: f64 = 5e-3;
 
 /// A corner of the overlap polyhedron, by what makes it. `side` 0 is body A, 1 body B.
@@ -71,7 +73,7 @@ pub struct Structure {
 /// A [`Structure`]'s words, read in place: a header of [`HEADER`] words (the counts of
 /// corners, near planes, pieces and ring entries; the clearance), where the bodies were when it
 /// was found ([`FOUND_AT`] words, only with a finite clearance: nothing else reads it), then 4
-/// words per corner, 2 per near plane, 3 per piece and 1 per ring entry.
+/// words per corner, 3 per near plane, 3 per piece and 1 per ring entry.
 #[derive(Clone, Copy, Debug)]
 pub struct Packed<'a> {
     words: &'a [u32],
@@ -93,7 +95,7 @@ struct Parts {
     rings: Vec<u16>,
     /// For the vertex corners inside a large body: the planes of that body each was nearer
     /// than [`NEAR_REL`] x size to when found (checked at every step), as (corner, face)...
-    near: Vec<(u16, u32)>,
+    near: Vec<(u16, u32, f32)>,
     /// ... and the least clearance (distance inside) they had from all the other planes, when
     /// found (those are covered by the motion since); infinite without such corners.
     clearance: f64,
@@ -155,13 +157,15 @@ impl<'a> Pair<'a> {
 
     /// How far `p` (world) lies inside each face plane of body `side`, by a scan in the body's
     /// own frame over its shape's planes (posing all ~1 500 planes of an Ab_3 hull for it, a
-    /// rotation each, was most of the cost of finding a large pair's structure). Calls
-    /// `near(f)`, ascending, for each face whose plane `p` may be nearer to than
+    /// rotation each, was most of the cost of finding a large pair's structure; groups of
+    /// planes facing away are bounded, not scanned: [`super::shape::Climb::clearances`]).
+    /// Calls `near(f, inside)` for each face whose plane `p` may be nearer to than
     /// [`NEAR_REL`] x size (to round-off: the caller checks those in world coordinates, as
-    /// [`Pair::vertex_inside`] will), and returns the least distance inside the others, less
-    /// its round-off (infinite when there are none). Distances of the frame change's
-    /// round-off, ~1e-16 of the positions, are far inside the allowance of 1e-3 x the margin.
-    fn far_clearance(&self, side: u8, p: &Vec3, mut near: impl FnMut(u32)) -> f64 {
+    /// [`Pair::vertex_inside`] will), with how far inside it `p` is less its round-off, and
+    /// returns the least distance inside the others, less its round-off (infinite when there
+    /// are none). Distances of the frame change's round-off, ~1e-16 of the positions, are far
+    /// inside the allowance of 1e-3 x the margin.
+    fn far_clearance(&self, side: u8, p: &Vec3, mut near: impl FnMut(u32, f64)) -> f64 {
         let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
         let local = posed.rot.inverse_transform_vector(&(p - posed.pos));
         let slack = 1e-3 * self.margin;
@@ -173,33 +177,14 @@ impl<'a> Pair<'a> {
                 let (n, d) = self.plane(side, f);
                 let inside = d - n.dot(p);
                 if inside < limit {
-                    near(f);
+                    near(f, inside - slack);
                 } else {
                     far = far.min(inside);
                 }
             }
             return far - slack;
         };
-        DISTANCES.with_borrow_mut(|dist| {
-            climb.plane_distances(&local, posed.scale, dist);
-            // Blocks of 8 with none near take their least at once.
-            let mut far = f64::INFINITY;
-            for (k, block) in dist.chunks(8).enumerate() {
-                let least = block.iter().fold(f64::INFINITY, |a, &v| a.min(v));
-                if least >= limit {
-                    far = far.min(least);
-                    continue;
-                }
-                for (j, &inside) in block.iter().enumerate() {
-                    if inside < limit {
-                        near((8 * k + j) as u32);
-                    } else {
-                        far = far.min(inside);
-                    }
-                }
-            }
-            far - slack
-        })
+        climb.clearances(&local, posed.scale, limit, |f, inside| near(f, inside - slack)) - slack
     }
 
     /// The sum of the two bodies' [`motion_bound`]s since `found_at` (for any point within
@@ -225,11 +210,14 @@ impl<'a> Pair<'a> {
         let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
         let face = s.face(f as usize);
         let inside = |vs: &[Vec3], n: &Vec3, p: &Vec3, m: f64| {
-            face.iter().enumerate().all(|(k, &u)| {
-                let (u, w) = (vs[u as usize], vs[face[(k + 1) % face.len()] as usize]);
+            // Each edge (u, w), from the last corner's round to the first.
+            let mut u = vs[face[face.len() - 1] as usize];
+            face.iter().all(|&w| {
+                let w = vs[w as usize];
                 // Inward in the plane for a face counter-clockwise about its outward normal.
                 let inward = n.cross(&(w - u));
                 let t = inward.dot(&(p - u));
+                u = w;
                 t > 0.0 && t * t > m * m * inward.norm_squared()
             })
         };
@@ -315,8 +303,9 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
     let mut found: Vec<(Corner, Vec3)> = Vec::new();
     let mut edges: Vec<(u32, u32)> = Vec::new();
     let mut clearance = f64::INFINITY;
-    let mut near: Vec<(Corner, u32)> = Vec::new();
+    let mut near: Vec<(Corner, u32, f64)> = Vec::new();
     let (mut ends, mut dist): (Vec<u32>, Vec<f64>) = (Vec::new(), Vec::new());
+    let (mut at, mut spheres): (Vec<Vec3>, Vec<(Vec3, f64)>) = (Vec::new(), Vec::new());
     // The planes of each body's faces that meet the slab.
     let slab = |side: u8| -> Vec<(Vec3, f64)> {
         faces[side as usize]
@@ -342,9 +331,9 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
                     continue;
                 }
                 let (listed, mut inside) = (near.len(), true);
-                let far = pair.far_clearance(1 - side, &p, |f| {
+                let far = pair.far_clearance(1 - side, &p, |f, inside_by| {
                     inside &= pair.vertex_inside(1 - side, f, &p);
-                    near.push((c, f));
+                    near.push((c, f, inside_by));
                 });
                 if !inside {
                     near.truncate(listed);
@@ -371,19 +360,42 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
         ends.sort_unstable();
         ends.dedup();
         dist.clear();
+        at.clear();
         for &v in &ends {
             let v = pair.vertex(side, v);
             dist.extend(planes.iter().map(|(n, d)| n.dot(&v) - d));
+            at.push(v);
         }
-        let row = |v: u32| {
-            let k = ends.binary_search(&v).unwrap_or_default() * planes.len();
-            &dist[k..k + planes.len()]
-        };
+        // Against a large body, an edge's crossing of a face plane far from the face's polygon
+        // is no corner: a sphere about each face (padded far beyond round-off) rules most of
+        // them out before the checks of `Pair::corner`, which would reject them.
+        spheres.clear();
+        if let Some(climb) = pair.large[1 - side as usize]
+            .then(|| pair.shapes[1 - side as usize].climb.as_ref())
+            .flatten()
+        {
+            let posed = pair.posed[1 - side as usize];
+            spheres.extend(others.iter().map(|&f| {
+                let (c, r) = climb.face_spheres[f as usize];
+                let r = r * posed.scale + 1e3 * pair.margin;
+                (posed.pos + posed.rot * (c * posed.scale), r * r)
+            }));
+        }
+        let end = |v: u32| ends.binary_search(&v).unwrap_or_default();
+        let row = |k: usize| &dist[k * planes.len()..(k + 1) * planes.len()];
         for &(i, j) in &edges {
-            let (di, dj) = (row(i), row(j));
+            let (ki, kj) = (end(i), end(j));
+            let (di, dj) = (row(ki), row(kj));
             for (k, &face) in others.iter().enumerate() {
                 if (di[k] > 0.0) == (dj[k] > 0.0) {
                     continue;
+                }
+                if let Some((c, r2)) = spheres.get(k) {
+                    let (vi, vj) = (at[ki], at[kj]);
+                    let p = vi + (vj - vi) * (di[k] / (di[k] - dj[k]));
+                    if (p - c).norm_squared() > *r2 {
+                        continue;
+                    }
                 }
                 let c = Corner::Edge { side, i, j, face };
                 if let Some(p) = pair.corner(c) {
@@ -449,11 +461,15 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
     }
     let at = |p: &Posed| (p.pos, p.orientation, p.scale);
     let corners: Vec<Corner> = found.into_iter().map(|(c, _)| c).collect();
-    let mut near: Vec<(u16, u32)> = near
+    // Each near plane with its clearance rounded down, least first (see `Packed::evaluate`).
+    let mut near: Vec<(u16, u32, f32)> = near
         .into_iter()
-        .map(|(c, f)| (corners.binary_search(&c).unwrap_or_default() as u16, f))
+        .map(|(c, f, inside)| {
+            let k = corners.binary_search(&c).unwrap_or_default() as u16;
+            (k, f, f32_at_most(inside))
+        })
         .collect();
-    near.sort_unstable();
+    near.sort_unstable_by(|x, y| x.2.total_cmp(&y.2).then((x.0, x.1).cmp(&(y.0, y.1))));
     Some(Structure::pack(&Parts {
         corners,
         near,
@@ -462,6 +478,21 @@ pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<S
         clearance,
         found_at: [at(pair.posed[0]), at(pair.posed[1])],
     }))
+}
+
+/// The greatest `f32` not above `x` (finite `x`): a clearance kept in one word, rounded so that
+/// it is never more than the clearance.
+fn f32_at_most(x: f64) -> f32 {
+    let low = x as f32;
+    if f64::from(low) <= x {
+        low
+    } else if low > 0.0 {
+        f32::from_bits(low.to_bits() - 1)
+    } else if low == 0.0 {
+        -f32::from_bits(1)
+    } else {
+        f32::from_bits(low.to_bits() + 1)
+    }
 }
 
 /// The two words of `x`.
@@ -476,7 +507,7 @@ impl Structure {
         let len = HEADER
             + found_at
             + 4 * p.corners.len()
-            + 2 * p.near.len()
+            + 3 * p.near.len()
             + 3 * p.pieces.len()
             + p.rings.len();
         let mut w = Vec::with_capacity(len);
@@ -500,7 +531,7 @@ impl Structure {
                 Corner::Edge { side, i, j, face } => [u32::from(side) | 2, i, j, face],
             });
         }
-        w.extend(p.near.iter().flat_map(|&(k, f)| [u32::from(k), f]));
+        w.extend((p.near.iter()).flat_map(|&(k, f, c)| [u32::from(k), f, c.to_bits()]));
         w.extend(
             p.pieces
                 .iter()
@@ -528,8 +559,6 @@ impl Structure {
 }
 
 thread_local! {
-    /// A point's distances to a large shape's planes ([`Pair::far_clearance`]).
-    static DISTANCES: std::cell::RefCell<Vec<f64>> = std::cell::RefCell::default();
     static CORNERS: std::cell::RefCell<(Vec<Vec3>, Vec<Vec3>)> = std::cell::RefCell::default();
 }
 
@@ -577,7 +606,7 @@ impl<'a> Packed<'a> {
         let found_at = if clearance.is_finite() { FOUND_AT } else { 0 };
         let (found_at, rest) = w[HEADER..].split_at(found_at);
         let (corners, rest) = rest.split_at(4 * count(0));
-        let (near, rest) = rest.split_at(2 * count(1));
+        let (near, rest) = rest.split_at(3 * count(1));
         let (pieces, rings) = rest.split_at(3 * count(2));
         debug_assert_eq!(rings.len(), count(3));
         Sections {
@@ -596,6 +625,7 @@ impl<'a> Packed<'a> {
         let s = self.sections();
         // The vertices inside a large body are still inside it by the margin while the bodies
         // have moved less than their clearance allows.
+        let mut moved = f64::INFINITY;
         if s.clearance.is_finite() {
             let body = |w: &[u32]| {
                 let x = |k: usize| join(&w[2 * k..]);
@@ -604,7 +634,8 @@ impl<'a> Packed<'a> {
                 (Vec3::new(x(0), x(1), x(2)), q, x(7))
             };
             let found_at = [body(&s.found_at[..16]), body(&s.found_at[16..])];
-            if pair.moved_since(&found_at) >= s.clearance - pair.margin {
+            moved = pair.moved_since(&found_at);
+            if moved >= s.clearance - pair.margin {
                 return None;
             }
         }
@@ -613,7 +644,12 @@ impl<'a> Packed<'a> {
             for c in s.corners.chunks_exact(4) {
                 at.push(pair.corner(corner_of(c))?);
             }
-            for n in s.near.chunks_exact(2) {
+            // A near plane the vertex was farther inside than the margin plus the motion since
+            // is still behind it: the list is by clearance, least first, so the rest are too.
+            for n in s.near.chunks_exact(3) {
+                if moved + pair.margin < f64::from(f32::from_bits(n[2])) {
+                    break;
+                }
                 // Near planes are listed for vertex corners only; the side is the corner's.
                 let (k, f) = (n[0] as usize, n[1]);
                 let side = (s.corners[4 * k] & 1) as u8;
@@ -783,6 +819,15 @@ mod tests {
             held > 300 && changed > 100,
             "held {held}, changed {changed}"
         );
+    }
+
+    #[test]
+    fn clearances_kept_in_one_word_round_down() {
+        for x in [0.1, 1e-7, 3.3e-5, -2.5e-6, 0.0, 1.0 + 1e-12, 7e-46, -7e-46] {
+            let low = f32_at_most(x);
+            assert!(f64::from(low) <= x, "{x}");
+            assert!(f64::from(low) >= x - x.abs() * 1.2e-7 - 1.5e-45, "{x}: {low}");
+        }
     }
 
     /// Ab_3 hulls (Catmull-Clark, 3 levels) of the 6- and 9-face templates, and the 9-face I_P.
