@@ -224,13 +224,10 @@ impl<'a> Pair<'a> {
         if !posed.vertices.is_empty() {
             return inside(&posed.vertices, n, p, self.margin);
         }
-        let at = posed.rot.inverse_transform_vector(&(p - posed.pos)) / posed.scale;
-        inside(
-            &s.vertices,
-            &s.normals[f as usize],
-            &at,
-            self.margin / posed.scale,
-        )
+        // One division: the check is by a margin far above the round-off this changes.
+        let inv = 1.0 / posed.scale;
+        let at = posed.rot.inverse_transform_vector(&(p - posed.pos)) * inv;
+        inside(&s.vertices, &s.normals[f as usize], &at, self.margin * inv)
     }
 
     /// Where corner `c` is, or `None` when it is not robustly a corner of the overlap.
@@ -559,7 +556,7 @@ impl Structure {
 }
 
 thread_local! {
-    static CORNERS: std::cell::RefCell<(Vec<Vec3>, Vec<Vec3>)> = std::cell::RefCell::default();
+    static CORNERS: std::cell::RefCell<Vec<Vec3>> = std::cell::RefCell::default();
 }
 
 /// The number that [`split`] gave the words `w[0]`, `w[1]` of.
@@ -639,7 +636,7 @@ impl<'a> Packed<'a> {
                 return None;
             }
         }
-        CORNERS.with_borrow_mut(|(at, ring)| {
+        CORNERS.with_borrow_mut(|at| {
             at.clear();
             for c in s.corners.chunks_exact(4) {
                 at.push(pair.corner(corner_of(c))?);
@@ -657,13 +654,12 @@ impl<'a> Packed<'a> {
                     return None;
                 }
             }
-            ring.clear();
-            ring.extend(s.rings.iter().map(|&k| at[k as usize]));
             let mut acc = Acc::default();
             let mut start = 0;
             for piece in s.pieces.chunks_exact(3) {
                 let end = piece[2] as usize;
-                let _ = acc.piece(&ring[start..end], piece[0] == 1);
+                let ring = &s.rings[start..end];
+                let _ = acc.piece_by(ring.len(), |k| at[ring[k] as usize], piece[0] == 1);
                 start = end;
             }
             let (volume, centroid) = acc.volume_centroid()?;
