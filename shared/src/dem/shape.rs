@@ -470,12 +470,23 @@ impl Shape {
         let pad = BOX_PAD_REL * self.radius * scale;
         let world = |i: usize| out.vertex(self, i);
         let (mut lo, mut hi) = (Vec3::zeros(), Vec3::zeros());
+        // Each climb starts from where the last pose's ended (a body turns little in a step,
+        // so its extreme vertices mostly stay), else from the cube map. A climb ends at the
+        // top from any vertex: the start changes its cost, not the box.
+        let last = out.tops.filter(|t| t.iter().all(|&v| (v as usize) < self.vertices.len()));
+        let mut tops = [0u32; 6];
         for k in 0..3 {
             let d = Vec3::ith(k, 1.0);
-            hi[k] = c.ascend(c.start(&out.rot, &d), |i| world(i)[k]).1 + pad;
-            lo[k] = -c.ascend(c.start(&out.rot, &-d), |i| -world(i)[k]).1 - pad;
+            let from = |side: usize, d: &Vec3| match last {
+                Some(t) => t[2 * k + side] as usize,
+                None => c.start(&out.rot, d),
+            };
+            let (top, h) = c.ascend(from(0, &d), |i| world(i)[k]);
+            let (bottom, l) = c.ascend(from(1, &-d), |i| -world(i)[k]);
+            (hi[k], lo[k]) = (h + pad, -l - pad);
+            (tops[2 * k], tops[2 * k + 1]) = (top as u32, bottom as u32);
         }
-        (out.lo, out.hi) = (lo, hi);
+        (out.lo, out.hi, out.tops) = (lo, hi, Some(tops));
     }
 
     fn pose_with(
@@ -584,6 +595,9 @@ pub struct Posed {
     pub orientation: UnitQuaternion<f64>,
     pub pos: Vec3,
     pub scale: f64,
+    /// A large hull posed lazily: the vertices its box's six climbs ended at (highest and
+    /// lowest along x, y, z), where the next pose's climbs start.
+    pub tops: Option<[u32; 6]>,
 }
 
 impl Posed {
@@ -702,6 +716,20 @@ mod tests {
         for f in 0..s.face_count() {
             assert_eq!(lazy.plane(&s, f), full.plane(&s, f), "plane {f}");
         }
+        // Posed again, turned a little or a lot, its climbs start where the last ended: the
+        // box must be a fresh pose's, to the bit (and from tops of another shape's pose too).
+        let mut warm = lazy.clone();
+        for (k, angle) in [1e-4, 0.01, 0.3, 2.0, 3.1].into_iter().enumerate() {
+            let turned = UnitQuaternion::from_euler_angles(angle, -0.5 * angle, 0.7) * rot;
+            let moved = pos + Vec3::new(0.01, 0.0, -0.02) * k as f64;
+            s.pose_for_contacts(&moved, &turned, 0.013, &mut warm, true);
+            let mut fresh = Posed::default();
+            s.pose_for_contacts(&moved, &turned, 0.013, &mut fresh, true);
+            assert_eq!((warm.lo, warm.hi), (fresh.lo, fresh.hi), "angle {angle}");
+        }
+        warm.tops = Some([0, 1, 2, 3, 4, u32::MAX]);
+        s.pose_for_contacts(&pos, &rot, 0.013, &mut warm, true);
+        assert_eq!((warm.lo, warm.hi), (lazy.lo, lazy.hi));
     }
 
     /// [`Climb::clearances`] skips groups of planes by a bound: it must name the same near
