@@ -195,13 +195,18 @@ impl Climb {
                     axis,
                     cos,
                     sin: (1.0 - cos * cos).max(0.0).sqrt(),
-                    offset: (members.iter().map(|&f| offsets[f as usize])).fold(f64::INFINITY, f64::min),
+                    offset: (members.iter().map(|&f| offsets[f as usize]))
+                        .fold(f64::INFINITY, f64::min),
                 };
                 *start += members.len() as u32;
                 Some(group)
             })
             .collect();
-        let column = |k: usize| (group_faces.iter()).map(|&f| normals[f as usize][k]).collect();
+        let column = |k: usize| {
+            (group_faces.iter())
+                .map(|&f| normals[f as usize][k])
+                .collect()
+        };
         let offsets: Vec<f64> = group_faces.iter().map(|&f| offsets[f as usize]).collect();
         let face_spheres = (face_start.windows(2))
             .map(|r| {
@@ -261,10 +266,13 @@ impl Climb {
             }
         }
         for (g, group) in self.groups.iter().enumerate() {
-            if skipped[g / 64] & 1 << (g % 64) == 0 || group.least_inside(local, norm, scale) >= far {
+            if skipped[g / 64] & 1 << (g % 64) == 0 || group.least_inside(local, norm, scale) >= far
+            {
                 continue;
             }
-            far = (group.start as usize..end(g)).map(inside).fold(far, f64::min);
+            far = (group.start as usize..end(g))
+                .map(inside)
+                .fold(far, f64::min);
         }
         far
     }
@@ -473,7 +481,9 @@ impl Shape {
         // Each climb starts from where the last pose's ended (a body turns little in a step,
         // so its extreme vertices mostly stay), else from the cube map. A climb ends at the
         // top from any vertex: the start changes its cost, not the box.
-        let last = out.tops.filter(|t| t.iter().all(|&v| (v as usize) < self.vertices.len()));
+        let last = out
+            .tops
+            .filter(|t| t.iter().all(|&v| (v as usize) < self.vertices.len()));
         let mut tops = [0u32; 6];
         for k in 0..3 {
             let d = Vec3::ith(k, 1.0);
@@ -769,7 +779,11 @@ mod tests {
                 let least = climb.clearances(&p, scale, limit, |f, inside| got.push((f, inside)));
                 got.sort_by_key(|g| g.0);
                 assert_eq!(got, near, "faces {faces}, depth {depth}, limit {limit}");
-                assert_eq!(least.to_bits(), far.to_bits(), "faces {faces}, depth {depth}");
+                assert_eq!(
+                    least.to_bits(),
+                    far.to_bits(),
+                    "faces {faces}, depth {depth}"
+                );
             }
         }
     }
@@ -785,7 +799,10 @@ mod tests {
         for f in 0..s.face_count() {
             let (c, r) = climb.face_spheres[f];
             for &v in s.face(f) {
-                assert!((s.vertices[v as usize] - c).norm() <= r * (1.0 + 1e-15), "face {f}");
+                assert!(
+                    (s.vertices[v as usize] - c).norm() <= r * (1.0 + 1e-15),
+                    "face {f}"
+                );
             }
             assert!(r < 0.5 * s.radius, "face {f}: radius {r}");
         }
