@@ -181,9 +181,12 @@ fn stack_of_five_cubes_stays_put() {
 
 /// A block (a square `SIDE` face, height `h` x `SIDE`) on an incline with friction `mu`.
 /// Gravity tilts to `theta` over `ramp` seconds (quasi-statically: many periods of every contact
-/// mode), then holds for `t`. Returns the displacement along the slope during the hold (from
-/// `ramp + settle`) and the final speed.
-fn incline(h: f64, theta: f64, mu: f64, damping: f64, ramp: f64, t: f64) -> (f64, f64) {
+/// mode), then holds for `t`. Returns the displacement along the slope during the hold, the
+/// final speed, and the acceleration along the slope fitted (least squares) to the speed over
+/// the hold: released at once, the block keeps vibrating undamped, and its speed at any one
+/// instant is off the mean line by up to 2.5 % (a change of the starting position by 1e-12 m
+/// moves the final speed by that much and the fitted acceleration by 0.3 % at most).
+fn incline(h: f64, theta: f64, mu: f64, damping: f64, ramp: f64, t: f64) -> (f64, f64, f64) {
     let g = 9.81;
     let material = Material {
         wall_friction: mu,
@@ -203,15 +206,23 @@ fn incline(h: f64, theta: f64, mu: f64, damping: f64, ramp: f64, t: f64) -> (f64
     );
     w.dt = 0.2 * w.critical_dt();
     let mut x0 = 0.0;
+    let mut sums = [0.0; 5]; // n, t, v, t t, t v over the hold
     while w.time < ramp + t {
         let th = theta * (w.time / ramp).min(1.0);
         w.gravity = Vec3::new(g * th.sin(), 0.0, -g * th.cos());
         w.step();
         if w.time <= ramp {
             x0 = w.bodies[i].pos.x;
+        } else {
+            let (s, v) = (w.time, w.bodies[i].vel.x);
+            for (sum, term) in sums.iter_mut().zip([1.0, s, v, s * s, s * v]) {
+                *sum += term;
+            }
         }
     }
-    (w.bodies[i].pos.x - x0, w.bodies[i].vel.x)
+    let [n, st, sv, stt, stv] = sums;
+    let fitted = (n * stv - st * sv) / (n * stt - st * st);
+    (w.bodies[i].pos.x - x0, w.bodies[i].vel.x, fitted)
 }
 
 /// Issue "DEM engine", test 4, sticking: a cube on a plane tilted quasi-statically to
@@ -221,7 +232,7 @@ fn incline(h: f64, theta: f64, mu: f64, damping: f64, ramp: f64, t: f64) -> (f64
 #[test]
 fn cube_on_an_incline_below_the_friction_angle_stays() {
     let mu: f64 = 0.5;
-    let (x, v) = incline(1.0, mu.atan() - 2f64.to_radians(), mu, 0.3, 0.1, 0.2);
+    let (x, v, _) = incline(1.0, mu.atan() - 2f64.to_radians(), mu, 0.3, 0.1, 0.2);
     assert!(x.abs() < 1e-9, "crept {x:e} m in 0.2 s");
     assert!(v.abs() < 1e-9, "moving at {v:e} m/s");
 }
@@ -229,15 +240,18 @@ fn cube_on_an_incline_below_the_friction_angle_stays() {
 /// Issue "DEM engine", test 4, sliding: undamped, a plane at atan(mu) + 5 degrees; the block
 /// slides with g (sin - mu cos). A block of height SIDE/2 keeps its whole face in contact while
 /// it slides (friction moves the normal resultant mu h / 2 = SIDE/8 off centre, inside the middle
-/// third), where the law is a Winkler foundation and conservative.
+/// third), where the law is a Winkler foundation and conservative. The acceleration is fitted
+/// to the speed over the slide (see `incline`: 1.0015-1.0041 a for starting positions 1e-12 to
+/// 1e-6 m apart; a block of height SIDE/4, 0.9999-1.0002 a); the distance is the speed's
+/// integral.
 #[test]
 fn flat_block_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
     let mu: f64 = 0.5;
     let theta = mu.atan() + 5f64.to_radians();
     let t = 0.2;
-    let (x, v) = incline(0.5, theta, mu, 0.0, 1e-9, t);
+    let (x, _, fitted) = incline(0.5, theta, mu, 0.0, 1e-9, t);
     let a = 9.81 * (theta.sin() - mu * theta.cos());
-    assert!((v / (a * t) - 1.0).abs() < 0.01, "speed {v} vs {}", a * t);
+    assert!((fitted / a - 1.0).abs() < 0.01, "acceleration {fitted} vs {a}");
     let x_expected = 0.5 * a * t * t;
     assert!(
         (x / x_expected - 1.0).abs() < 0.01,
@@ -249,8 +263,9 @@ fn flat_block_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
 /// its trailing edge (the normal resultant sits mu L / 2 = L/4 off centre, beyond the middle
 /// third). With the edge lifted the paper's law F = kn V/|S| at the overlap centroid is not
 /// conservative: F depends on the edge penetration only, its moment on the footprint (the field
-/// has curl ~ kn L / 3); the rocking it feeds (tilt up to 5e-3 rad) lowers the mean friction, so
-/// the cube reaches 1.028 a t instead of a t (+2.8 %, target 1 %); held undamped at
+/// has curl ~ kn L / 3); the rocking it feeds (tilt up to 1.5e-2 to 3e-2 rad) lowers the mean
+/// friction, so the cube slides at 1.023 to 1.057 a (fitted as in `incline`, for starting
+/// positions 1e-12 to 1e-6 m apart; target 1 %); held undamped at
 /// atan(mu) - 2 degrees it walks 0.74 mm in 0.2 s. Local damping (0.3) stops both the rocking and
 /// the walk (test above). A conservative law (Winkler: force proportional to V) fixes it but
 /// makes vertex contacts far softer than the paper's kn: see docs/dem-contact.md.
@@ -260,9 +275,9 @@ fn cube_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
     let mu: f64 = 0.5;
     let theta = mu.atan() + 5f64.to_radians();
     let t = 0.2;
-    let (_, v) = incline(1.0, theta, mu, 0.0, 1e-9, t);
+    let (_, _, fitted) = incline(1.0, theta, mu, 0.0, 1e-9, t);
     let a = 9.81 * (theta.sin() - mu * theta.cos());
-    assert!((v / (a * t) - 1.0).abs() < 0.01, "speed {v} vs {}", a * t);
+    assert!((fitted / a - 1.0).abs() < 0.01, "acceleration {fitted} vs {a}");
 }
 
 #[test]
