@@ -251,7 +251,10 @@ fn flat_block_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
     let t = 0.2;
     let (x, _, fitted) = incline(0.5, theta, mu, 0.0, 1e-9, t);
     let a = 9.81 * (theta.sin() - mu * theta.cos());
-    assert!((fitted / a - 1.0).abs() < 0.01, "acceleration {fitted} vs {a}");
+    assert!(
+        (fitted / a - 1.0).abs() < 0.01,
+        "acceleration {fitted} vs {a}"
+    );
     let x_expected = 0.5 * a * t * t;
     assert!(
         (x / x_expected - 1.0).abs() < 0.01,
@@ -277,7 +280,10 @@ fn cube_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
     let t = 0.2;
     let (_, _, fitted) = incline(1.0, theta, mu, 0.0, 1e-9, t);
     let a = 9.81 * (theta.sin() - mu * theta.cos());
-    assert!((fitted / a - 1.0).abs() < 0.01, "acceleration {fitted} vs {a}");
+    assert!(
+        (fitted / a - 1.0).abs() < 0.01,
+        "acceleration {fitted} vs {a}"
+    );
 }
 
 #[test]
