@@ -92,6 +92,12 @@ pub fn clip(
 ) -> bool {
     dist.clear();
     dist.extend(poly.iter().map(|p| n.dot(p) - d));
+    clip_with(poly, tmp, dist)
+}
+
+/// [`clip`] with the vertices' distances above the plane given, `dist[k]` for `poly[k]`.
+#[inline]
+pub fn clip_with(poly: &mut Vec<Vec3>, tmp: &mut Vec<Vec3>, dist: &[f64]) -> bool {
     if dist.iter().all(|&s| s <= 0.0) {
         return poly.len() >= 3;
     }

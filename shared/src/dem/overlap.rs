@@ -22,7 +22,7 @@
 use super::gjk::{separating_gap, Hints, Points};
 use super::shape::{Posed, Shape};
 use super::structure::{discover, Packed, Pair, Structure};
-use crate::math::{bounding_box, box_excess, clip, Vec3};
+use crate::math::{bounding_box, box_excess, clip, clip_with, Vec3};
 
 /// The overlap of two bodies: volume, centroid, and `S_B` (area vector of B's surface inside A,
 /// outward from B). `normal()` points from A to B.
@@ -160,6 +160,9 @@ struct Scratch {
 #[derive(Default)]
 struct Side {
     heights: Vec<f64>,
+    /// A large hull's world positions the heights were computed from (with the heights'
+    /// stamps), read again by the faces around the reach ([`Side::point`]).
+    points: Vec<Vec3>,
     top: usize,
     reach: Vec<u32>,
     stack: Vec<u32>,
@@ -198,8 +201,16 @@ impl Side {
         if self.heights.len() < count {
             self.heights.resize(count, 0.0);
         }
-        let (heights, stamps, stamp) = (&mut self.heights, &mut self.height_stamps, self.stamp);
-        let height = |i: usize| lazy_height(heights, stamps, stamp, (s, p), n, sign, i);
+        if self.points.len() < count {
+            self.points.resize(count, Vec3::zeros());
+        }
+        let (heights, points, stamps, stamp) = (
+            &mut self.heights,
+            &mut self.points,
+            &mut self.height_stamps,
+            self.stamp,
+        );
+        let height = |i: usize| lazy_height((heights, points), stamps, stamp, (s, p), n, sign, i);
         // Steepest ascent: on a convex polytope a vertex with no higher neighbour is a top.
         let (at, best) = c.ascend(c.start(&p.rot, &(n * sign)), height);
         self.top = at;
@@ -217,8 +228,9 @@ impl Side {
             );
             return;
         };
-        let (heights, stamps, seen, stamp) = (
+        let (heights, points, stamps, seen, stamp) = (
             &mut self.heights,
+            &mut self.points,
             &mut self.height_stamps,
             &mut self.seen_stamps,
             self.stamp,
@@ -233,7 +245,7 @@ impl Side {
                 if seen[wi] == stamp {
                     continue;
                 }
-                if lazy_height(heights, stamps, stamp, (s, p), n, sign, wi) >= floor {
+                if lazy_height((heights, points), stamps, stamp, (s, p), n, sign, wi) >= floor {
                     seen[wi] = stamp;
                     self.reach.push(w);
                     self.stack.push(w);
@@ -246,7 +258,7 @@ impl Side {
 
 /// Vertex `i`'s height `sign n . v`, computed the first time this climb (`stamp`) asks for it.
 fn lazy_height(
-    heights: &mut [f64],
+    (heights, points): (&mut [f64], &mut [Vec3]),
     stamps: &mut [u32],
     stamp: u32,
     (s, p): (&Shape, &Posed),
@@ -255,10 +267,27 @@ fn lazy_height(
     i: usize,
 ) -> f64 {
     if stamps[i] != stamp {
-        heights[i] = sign * n.dot(&p.vertex(s, i));
+        let v = p.vertex(s, i);
+        heights[i] = sign * n.dot(&v);
+        points[i] = v;
         stamps[i] = stamp;
     }
     heights[i]
+}
+
+impl Side {
+    /// Vertex `i` of `p` (a posed `s`) and its height along the last climb's direction: as
+    /// the climb or its walk computed them, else computed now (the same numbers).
+    fn point(&self, s: &Shape, p: &Posed, n: &Vec3, sign: f64, i: usize) -> (Vec3, f64) {
+        if s.climb.is_none() {
+            return (p.vertices[i], self.heights[i]);
+        }
+        if self.height_stamps[i] == self.stamp {
+            return (self.points[i], self.heights[i]);
+        }
+        let v = p.vertex(s, i);
+        (v, sign * n.dot(&v))
+    }
 }
 
 /// Cutting planes beyond this many are tested face by face instead of by vertex codes.
@@ -266,6 +295,8 @@ const CODED: usize = 55;
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
+    /// [`faces_around`]'s set of faces (all clear between calls) and the words it set.
+    static FACE_BITS: std::cell::RefCell<(Vec<u64>, Vec<u32>)> = std::cell::RefCell::default();
 }
 
 /// The culling half-spaces as (normal, offset): the slab `lo_n <= n . x <= hi_n` first (the
@@ -420,14 +451,32 @@ fn set_bits(mut bits: u64) -> impl Iterator<Item = usize> {
     })
 }
 
-/// The faces of `s` around the vertices `reach`, ascending, into `out`.
+/// The faces of `s` around the vertices `reach`, ascending, into `out`: marked in a set of
+/// bits, read in order (sorting the faces of every vertex, each listed about six times, was a
+/// fifth of a wall contact's instructions on Ab_3 hulls).
 fn faces_around(s: &Shape, reach: &[u32], out: &mut Vec<u32>) {
     out.clear();
-    for &i in reach {
-        out.extend_from_slice(s.faces_at(i as usize));
-    }
-    out.sort_unstable();
-    out.dedup();
+    FACE_BITS.with_borrow_mut(|(bits, words)| {
+        let need = s.face_count().div_ceil(64);
+        if bits.len() < need {
+            bits.resize(need, 0);
+        }
+        words.clear();
+        for &i in reach {
+            for &f in s.faces_at(i as usize) {
+                let w = (f / 64) as usize;
+                if bits[w] == 0 {
+                    words.push(w as u32);
+                }
+                bits[w] |= 1 << (f % 64);
+            }
+        }
+        words.sort_unstable();
+        for &w in words.iter() {
+            out.extend(set_bits(bits[w as usize]).map(|k| w * 64 + k as u32));
+            bits[w as usize] = 0;
+        }
+    });
 }
 
 /// The overlap of posed shapes A and B, or `None` when they do not overlap (zero volume).
@@ -750,13 +799,16 @@ pub fn overlap_half_space_within(
         side_b.reach_down_to(sb, b, n, -1.0, -d);
         faces_around(sb, &side_b.reach, faces_b);
         for &f in faces_b.iter() {
+            // The face clipped to the wall as `clip` would, from the vertices and their
+            // heights the walk computed (each vertex is on about six faces).
             poly.clear();
-            poly.extend(
-                sb.face(f as usize)
-                    .iter()
-                    .map(|&i| b.vertex(sb, i as usize)),
-            );
-            if clip(poly, tmp, dist, n, d) {
+            dist.clear();
+            for &i in sb.face(f as usize) {
+                let (v, height) = side_b.point(sb, b, n, -1.0, i as usize);
+                poly.push(v);
+                dist.push(-height - d);
+            }
+            if clip_with(poly, tmp, dist) {
                 // The clipped faces hold every vertex of the part inside the wall.
                 if (sides.iter()).any(|(m, e)| poly.iter().any(|x| m.dot(x) > *e)) {
                     return false;
