@@ -31,7 +31,7 @@ use super::overlap::{
     overlap_half_space, overlap_half_space_within, overlap_parts, reach_along, Beyond, Overlap,
 };
 use super::shape::{Posed, Shape};
-use crate::math::{basis, Vec3};
+use crate::math::{basis, box_excess, Vec3};
 use nalgebra::UnitQuaternion;
 use std::sync::OnceLock;
 
@@ -173,6 +173,15 @@ impl Wall {
             node_velocities: vec![Vec3::zeros(); n],
             node_forces: vec![Vec3::zeros(); n],
         })
+    }
+
+    /// False when nothing within the box `lo`, `hi` can touch this wall (a plane: the box is
+    /// wholly outside it; [`Wall::touch`] then gives no contact for a body of that box).
+    pub fn may_touch(&self, lo: &Vec3, hi: &Vec3) -> bool {
+        match &self.kind {
+            WallKind::Plane { normal, offset } => box_excess(&-normal, -offset, lo, hi) > 0.0,
+            _ => true,
+        }
     }
 
     /// The contact of body `b` (shape `s`, bounding radius `radius`) with this wall.
@@ -621,6 +630,33 @@ mod tests {
         let s = Shape::from_mesh(&cube(0.5)).unwrap();
         let b = s.posed(&p, &UnitQuaternion::identity(), 1.0);
         (s, b)
+    }
+
+    /// The step skips the pairs `may_touch` rules out: for a plane, none of them touches.
+    #[test]
+    fn a_plane_rules_out_only_boxes_that_cannot_touch_it() {
+        let wall = Wall::plane(
+            Vec3::new(0.0, 0.0, 0.1),
+            Vec3::new(0.3, -0.2, 1.0).normalize(),
+        );
+        let (mut out, mut touching) = (0, 0);
+        for k in 0..400 {
+            let t = k as f64 / 400.0;
+            let at = Vec3::new(0.7 * (9.0 * t).sin(), 0.4 * (5.0 * t).cos(), -0.8 + 3.0 * t);
+            let s = Shape::from_mesh(&cube(0.5)).unwrap();
+            let turn = UnitQuaternion::from_euler_angles(7.0 * t, 3.0 * t, -2.0 * t);
+            let b = s.posed(&at, &turn, 1.0);
+            let hit = wall.touch(&s, &b, s.radius).is_some();
+            if !wall.may_touch(&b.lo, &b.hi) {
+                assert!(!hit, "pose {k}: ruled out, yet touching");
+                out += 1;
+            }
+            touching += usize::from(hit);
+        }
+        assert!(
+            out > 50 && touching > 50,
+            "{out} ruled out, {touching} touching"
+        );
     }
 
     /// A floor z = 0 of two triangles over [-2, 2]^2, or of many small ones.

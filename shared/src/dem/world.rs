@@ -800,8 +800,16 @@ impl World {
         let this = &*self;
         // By wall, then body: the order of the contact keys, so the touches come out sorted.
         // (A body still adds its wall contacts by ascending wall, as each wall its bodies.)
-        let wall_pairs: Vec<(u32, u32)> = (0..this.walls.len() as u32)
-            .flat_map(|w| (0..this.bodies.len() as u32).map(move |i| (i, w)))
+        // Only the bodies whose boxes reach a wall (from the boxes' compact list: the wall
+        // contacts' own test read each body and its pose, a cache miss or two for each of
+        // the walls x bodies pairs).
+        let boxes = &boxes;
+        let wall_pairs: Vec<(u32, u32)> = (this.walls.iter().enumerate())
+            .flat_map(|(w, wall)| {
+                (boxes.iter().enumerate())
+                    .filter(|(_, (lo, hi))| wall.may_touch(lo, hi))
+                    .map(move |(i, _)| (i as u32, w as u32))
+            })
             .collect();
         let wall_touches: Vec<Touch> = filter_map_maybe_par(&wall_pairs, par, |&(i, w)| {
             let b = &this.bodies[i as usize];
