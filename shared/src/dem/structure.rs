@@ -246,13 +246,19 @@ impl<'a> Pair<'a> {
         }
         Some(match c {
             Corner::Vertex { side, i } => self.vertex(side, i),
-            Corner::Edge { side, i, j, face } => {
-                let (n, d) = self.plane(1 - side, face);
-                let (vi, vj) = (self.vertex(side, i), self.vertex(side, j));
-                let (si, sj) = (n.dot(&vi) - d, n.dot(&vj) - d);
-                vi + (vj - vi) * (si / (si - sj))
-            }
+            Corner::Edge { side, i, j, face } => self.edge_on_plane(side, i, j, face).crossing(),
         })
+    }
+
+    /// Edge `(i, j)` of body `side` against the plane of face `face` of the other body.
+    fn edge_on_plane(&self, side: u8, i: u32, j: u32, face: u32) -> EdgeOnPlane {
+        let (n, d) = self.plane(1 - side, face);
+        let (vi, vj) = (self.vertex(side, i), self.vertex(side, j));
+        EdgeOnPlane {
+            normal: n,
+            ends: [vi, vj],
+            above: [n.dot(&vi) - d, n.dot(&vj) - d],
+        }
     }
 
     /// How far the two bodies may move (the sum of their [`motion_bound`]s) from these poses
@@ -282,12 +288,10 @@ impl<'a> Pair<'a> {
             // took 4 % longer. They are checked every step.
             Corner::Edge { side, .. } if self.large[1 - side as usize] => return 0.0,
             Corner::Edge { side, i, j, face } => {
-                let (n, d) = self.plane(1 - side, face);
-                let (vi, vj) = (self.vertex(side, i), self.vertex(side, j));
-                let (si, sj) = (n.dot(&vi) - d, n.dot(&vj) - d);
+                let e = self.edge_on_plane(side, i, j, face);
+                let ([vi, vj], [si, sj]) = (e.ends, e.above);
                 let span = (si - sj).abs();
-                let p = vi + (vj - vi) * (si / (si - sj));
-                let clear = self.clearance_within(1 - side, &p, face);
+                let clear = self.clearance_within(1 - side, &e.crossing(), face);
                 let length = (vj - vi).norm();
                 (si.abs() - m)
                     .min(sj.abs() - m)
@@ -316,16 +320,14 @@ impl<'a> Pair<'a> {
                 (self.large[1 - side as usize] || self.inside(1 - side, &v, u32::MAX)).then_some(v)
             }
             Corner::Edge { side, i, j, face } => {
-                let (n, d) = self.plane(1 - side, face);
-                let (vi, vj) = (self.vertex(side, i), self.vertex(side, j));
-                let (si, sj) = (n.dot(&vi) - d, n.dot(&vj) - d);
-                let m = self.margin;
+                let e = self.edge_on_plane(side, i, j, face);
+                let ([si, sj], m) = (e.above, self.margin);
                 if !((si < -m && sj > m) || (si > m && sj < -m)) {
                     return None;
                 }
-                let p = vi + (vj - vi) * (si / (si - sj));
+                let p = e.crossing();
                 let inside = if self.large[1 - side as usize] {
-                    self.in_face(1 - side, face, &n, &p)
+                    self.in_face(1 - side, face, &e.normal, &p)
                 } else {
                     self.inside(1 - side, &p, face)
                 };
@@ -367,6 +369,22 @@ impl<'a> Pair<'a> {
             }
         }
         out.sort_unstable();
+    }
+}
+
+/// An edge of one body against a face plane of the other: the plane's normal, the edge's ends
+/// (world) and how far each lies above the plane.
+struct EdgeOnPlane {
+    normal: Vec3,
+    ends: [Vec3; 2],
+    above: [f64; 2],
+}
+
+impl EdgeOnPlane {
+    /// Where the edge crosses the plane (its ends on either side).
+    fn crossing(&self) -> Vec3 {
+        let ([vi, vj], [si, sj]) = (self.ends, self.above);
+        vi + (vj - vi) * (si / (si - sj))
     }
 }
 
