@@ -953,7 +953,7 @@ pub fn consolidate(
     w: &mut World,
     p: &Params,
     every: u64,
-    mut report: impl FnMut(&Status, &World),
+    mut report: impl FnMut(&Status, &World) + Send,
 ) -> Result<(), PackError> {
     let start = w.step;
     phase(w, p, Phase::Compaction, start, every, &mut report)?;
@@ -970,7 +970,7 @@ pub fn compact(
     w: &mut World,
     p: &Params,
     every: u64,
-    mut report: impl FnMut(&Status, &World),
+    mut report: impl FnMut(&Status, &World) + Send,
 ) -> Result<(), PackError> {
     phase(w, p, Phase::Compaction, w.step, every, &mut report)
 }
@@ -995,68 +995,73 @@ fn phase(
     which: Phase,
     start: u64,
     every: u64,
-    report: &mut impl FnMut(&Status, &World),
+    report: &mut (impl FnMut(&Status, &World) + Send),
 ) -> Result<(), PackError> {
-    let (name, unbalanced) = match which {
-        Phase::Compaction => ("compaction", p.prep_unbalanced),
-        Phase::Equilibrium => ("equilibrium", p.unbalanced),
-    };
-    // Porosity every PLATEAU_EVERY steps, the last PLATEAU_SAMPLES of them.
-    let mut history: std::collections::VecDeque<f64> = std::collections::VecDeque::new();
-    // The bodies' volume does not change: summed once, not every step.
-    let solid = solid_volume(w);
-    // The compaction servo's integral term, Pa.
-    let mut integral = 0.0;
-    loop {
-        // The container as the walls have it this step.
-        let b = bounds(w);
-        let geometry = b.geometry();
-        let (stresses, counts) = stresses_in(w, &b, &geometry);
-        let status = Status {
-            phase: name,
-            step: w.step - start,
-            stresses: stresses.clone(),
-            porosity: porosity_of(&b, solid),
-            unbalanced: w.unbalanced,
+    // The steps run on the pool (see `on_pool`).
+    crate::dem::world::on_pool(|| {
+        let (name, unbalanced) = match which {
+            Phase::Compaction => ("compaction", p.prep_unbalanced),
+            Phase::Equilibrium => ("equilibrium", p.unbalanced),
         };
-        if status.step % every == 0 {
-            report(&status, w);
-        }
-        let near = |s: f64| (s - p.pressure).abs() <= p.tolerance * p.pressure;
-        if status.step % PLATEAU_EVERY == 0 {
-            history.push_back(status.porosity);
-            if history.len() > PLATEAU_SAMPLES {
-                history.pop_front();
-            }
-        }
-        let done = match which {
-            Phase::Compaction => {
-                // At the target mean stress, and either in balance or no longer compacting
-                // (a frictionless packing keeps sliding at the target without densifying).
-                let plateau = history.len() == PLATEAU_SAMPLES
-                    && (history[0] - status.porosity).abs() < PLATEAU_POROSITY;
-                let mean = mean_stress(&geometry, &stresses);
-                near(mean) && (w.unbalanced <= unbalanced || plateau)
-            }
-            Phase::Equilibrium => stresses.iter().all(|&s| near(s)) && w.unbalanced <= unbalanced,
-        };
-        if done {
-            return Ok(());
-        }
-        if status.step >= p.max_steps {
-            return Err(PackError::NotSettled {
-                steps: status.step,
+        // Porosity every PLATEAU_EVERY steps, the last PLATEAU_SAMPLES of them.
+        let mut history: std::collections::VecDeque<f64> = std::collections::VecDeque::new();
+        // The bodies' volume does not change: summed once, not every step.
+        let solid = solid_volume(w);
+        // The compaction servo's integral term, Pa.
+        let mut integral = 0.0;
+        loop {
+            // The container as the walls have it this step.
+            let b = bounds(w);
+            let geometry = b.geometry();
+            let (stresses, counts) = stresses_in(w, &b, &geometry);
+            let status = Status {
                 phase: name,
-                stresses,
-                target: p.pressure,
+                step: w.step - start,
+                stresses: stresses.clone(),
+                porosity: porosity_of(&b, solid),
                 unbalanced: w.unbalanced,
-            });
+            };
+            if status.step % every == 0 {
+                report(&status, w);
+            }
+            let near = |s: f64| (s - p.pressure).abs() <= p.tolerance * p.pressure;
+            if status.step % PLATEAU_EVERY == 0 {
+                history.push_back(status.porosity);
+                if history.len() > PLATEAU_SAMPLES {
+                    history.pop_front();
+                }
+            }
+            let done = match which {
+                Phase::Compaction => {
+                    // At the target mean stress, and either in balance or no longer compacting
+                    // (a frictionless packing keeps sliding at the target without densifying).
+                    let plateau = history.len() == PLATEAU_SAMPLES
+                        && (history[0] - status.porosity).abs() < PLATEAU_POROSITY;
+                    let mean = mean_stress(&geometry, &stresses);
+                    near(mean) && (w.unbalanced <= unbalanced || plateau)
+                }
+                Phase::Equilibrium => {
+                    stresses.iter().all(|&s| near(s)) && w.unbalanced <= unbalanced
+                }
+            };
+            if done {
+                return Ok(());
+            }
+            if status.step >= p.max_steps {
+                return Err(PackError::NotSettled {
+                    steps: status.step,
+                    phase: name,
+                    stresses,
+                    target: p.pressure,
+                    unbalanced: w.unbalanced,
+                });
+            }
+            let common = (which == Phase::Compaction).then_some(&mut integral);
+            let speeds = servo(w, p, &geometry, &stresses, &counts, common);
+            set_speeds(w, &speeds);
+            w.step();
         }
-        let common = (which == Phase::Compaction).then_some(&mut integral);
-        let speeds = servo(w, p, &geometry, &stresses, &counts, common);
-        set_speeds(w, &speeds);
-        w.step();
-    }
+    })
 }
 
 /// The void-ratio limits of the templates and sizes, and the preparation friction for a relative
@@ -1113,7 +1118,7 @@ fn compacted(
     sample: &Params,
     friction: f64,
     every: u64,
-    report: &mut impl FnMut(f64, &Status),
+    report: &mut (impl FnMut(f64, &Status) + Send),
 ) -> Result<(usize, f64), PackError> {
     let q = Params {
         prep_friction: friction,
@@ -1155,7 +1160,7 @@ pub fn void_limits(
     scale: f64,
     loose_friction: f64,
     every: u64,
-    mut report: impl FnMut(f64, &Status),
+    mut report: impl FnMut(f64, &Status) + Send,
 ) -> Result<Limits, PackError> {
     limits_of(
         templates,
@@ -1174,7 +1179,7 @@ fn limits_of(
     scale: f64,
     loose_friction: f64,
     every: u64,
-    report: &mut impl FnMut(f64, &Status),
+    report: &mut (impl FnMut(f64, &Status) + Send),
 ) -> Result<Limits, PackError> {
     check_loose(loose_friction)?;
     let (_, e_min) = compacted(templates, sample, 0.0, every, report)?;
@@ -1201,7 +1206,7 @@ pub fn calibrate(
     loose_friction: f64,
     extra: usize,
     every: u64,
-    mut report: impl FnMut(f64, &Status),
+    mut report: impl FnMut(f64, &Status) + Send,
 ) -> Result<Calibration, PackError> {
     if !(0.0..=1.0).contains(&relative_density) {
         return Err(PackError::Bad(format!(
@@ -1305,7 +1310,7 @@ pub fn refine(
     limits: (f64, f64),
     runs: usize,
     every: u64,
-    mut report: impl FnMut(f64, &Status),
+    mut report: impl FnMut(f64, &Status) + Send,
 ) -> Result<Refinement, PackError> {
     let (e_min, e_max) = limits;
     let target = e_max - calibration.relative_density * (e_max - e_min);

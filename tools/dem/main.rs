@@ -301,27 +301,31 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let mut progress = cli::Progress::new("dem");
     let start = std::time::Instant::now();
     let mut ran = 0;
-    for k in 0..steps {
-        world.step();
-        ran = k + 1;
-        let done = args.until_unbalanced.is_some_and(|r| world.unbalanced < r);
-        let last = done || k + 1 == steps;
-        if let Some(s) = series.as_mut() {
-            if (k + 1) % args.every == 0 || last {
-                serde_json::to_writer(&mut *s, &series_line(&world))?;
-                s.write_all(b"\n")?;
+    // The steps run on the pool (see `on_pool`).
+    shared::dem::world::on_pool(|| -> anyhow::Result<()> {
+        for k in 0..steps {
+            world.step();
+            ran = k + 1;
+            let done = args.until_unbalanced.is_some_and(|r| world.unbalanced < r);
+            let last = done || k + 1 == steps;
+            if let Some(s) = series.as_mut() {
+                if (k + 1) % args.every == 0 || last {
+                    serde_json::to_writer(&mut *s, &series_line(&world))?;
+                    s.write_all(b"\n")?;
+                }
+            }
+            if let Some(s) = snapshots.as_mut() {
+                if (k + 1) % args.vtk_every == 0 || last {
+                    s.write(&world).context("writing a VTK snapshot")?;
+                }
+            }
+            progress.tick(k + 1, "steps");
+            if done {
+                break;
             }
         }
-        if let Some(s) = snapshots.as_mut() {
-            if (k + 1) % args.vtk_every == 0 || last {
-                s.write(&world).context("writing a VTK snapshot")?;
-            }
-        }
-        progress.tick(k + 1, "steps");
-        if done {
-            break;
-        }
-    }
+        Ok(())
+    })?;
     if let Some(r) = args.until_unbalanced {
         let ratio = world.unbalanced;
         if ratio < r {
