@@ -360,12 +360,10 @@ fn run(args: Cli) -> anyhow::Result<()> {
         let t = world.times;
         let share = |x: f64| 100.0 * x / t.total().max(1e-300);
         eprintln!(
-            "dem: step time {:.2} s: broad phase {:.1} %, narrow phase {:.1} %, walls {:.1} %, contacts per body {:.1} %, forces, motion and contact list {:.1} %",
+            "dem: step time {:.2} s: broad phase {:.1} %, narrow phase (body pairs, walls beside) {:.1} %, forces, motion and contact list {:.1} %",
             t.total(),
             share(t.broad),
             share(t.narrow),
-            share(t.walls),
-            share(t.assembly),
             share(t.integration)
         );
         eprintln!(

@@ -214,20 +214,18 @@ pub struct World {
 pub struct StepTimes {
     /// Posing the bodies (world vertices, planes, boxes) and the sweep for box-overlapping pairs.
     pub broad: f64,
-    /// Gap proofs and overlap polyhedra of body pairs, and their contact forces.
+    /// Gap proofs and overlap polyhedra of body pairs, and their contact forces, with the
+    /// body-wall contacts beside them (the two run side by side).
     pub narrow: f64,
-    /// Body-wall contacts.
-    pub walls: f64,
-    /// Listing each body's contacts, in the order its forces are summed.
-    pub assembly: f64,
-    /// Each body's forces summed, damping, kick, drift and rotation, with the contact list,
-    /// the walls' loads and the energy sums made beside them (the two run side by side).
+    /// Each body's contacts listed and its forces summed, damping, kick, drift and rotation,
+    /// with the contact list, the walls' loads and the energy sums made beside them (the two
+    /// run side by side).
     pub integration: f64,
 }
 
 impl StepTimes {
     pub fn total(&self) -> f64 {
-        self.broad + self.narrow + self.walls + self.assembly + self.integration
+        self.broad + self.narrow + self.integration
     }
 }
 
@@ -794,21 +792,20 @@ impl World {
             touches
         };
         const CHUNK: usize = 256;
-        let chunks: Vec<Vec<Touch>> = if par {
-            (pairs.par_chunks(CHUNK))
-                .zip(gaps.0.par_chunks_mut(CHUNK))
-                .map(chunk)
-                .collect()
-        } else {
-            (pairs.chunks(CHUNK))
-                .zip(gaps.0.chunks_mut(CHUNK))
-                .map(chunk)
-                .collect()
+        let gaps_out = &mut gaps.0;
+        let mut pair_touches = move || -> Vec<Vec<Touch>> {
+            if par {
+                (pairs.par_chunks(CHUNK))
+                    .zip(gaps_out.par_chunks_mut(CHUNK))
+                    .map(chunk)
+                    .collect()
+            } else {
+                (pairs.chunks(CHUNK))
+                    .zip(gaps_out.chunks_mut(CHUNK))
+                    .map(chunk)
+                    .collect()
+            }
         };
-        self.broad = broad;
-        self.separations = gaps;
-        let mut touches: Vec<&Touch> = chunks.iter().flatten().collect();
-        self.times.narrow += lap();
         let this = &*self;
         // By wall, then body: the order of the contact keys, so the touches come out sorted.
         // (A body still adds its wall contacts by ascending wall, as each wall its bodies.)
@@ -823,52 +820,54 @@ impl World {
                     .map(move |(i, _)| (i as u32, w as u32))
             })
             .collect();
+        // The wall contacts in one serial loop, beside the body pairs' (which need the same
+        // last contacts and poses only): split among threads, each took twice as long (on
+        // the 2000 I_P bed, 0.44 us a contact on one thread; the poses and bodies they read
+        // were in the other core's cache half the time), and on their own they left the
+        // other thread idle.
         let wall_touches = || -> Vec<Touch> {
-            filter_map_maybe_par(&wall_pairs, par, |&(i, w)| {
-                let b = &this.bodies[i as usize];
-                if b.fixed {
-                    return None;
-                }
-                let wall = &this.walls[w as usize];
-                let shape = &this.shapes[b.shape as usize];
-                let hit = wall.touch(shape, &posed[i as usize], shape.radius * b.scale)?;
-                let key = (Partner::Wall(w), i);
-                let last = this.contacts.get(&key);
-                let mut t = this.touch(
-                    key,
-                    last,
-                    &hit.overlap,
-                    hit.velocity,
-                    this.material.wall_friction,
-                );
-                let last_force =
-                    last.map_or(Vec3::zeros(), |c| c.normal * c.normal_force + c.shear);
-                t.wall_work = 0.5 * (last_force + t.force).dot(&hit.velocity) * this.dt;
-                t.node_weights = hit.node_weights;
-                if hit.couple != Vec3::zeros() {
-                    // The spots' moment does work as the body turns (the wall does not).
-                    t.couple = hit.couple * this.material.kn;
-                    t.contact.potential -= t.couple.dot(&b.omega()) * this.dt;
-                }
-                Some(t)
-            })
+            (wall_pairs.iter())
+                .filter_map(|&(i, w)| {
+                    let b = &this.bodies[i as usize];
+                    if b.fixed {
+                        return None;
+                    }
+                    let wall = &this.walls[w as usize];
+                    let shape = &this.shapes[b.shape as usize];
+                    let hit = wall.touch(shape, &posed[i as usize], shape.radius * b.scale)?;
+                    let key = (Partner::Wall(w), i);
+                    let last = this.contacts.get(&key);
+                    let mut t = this.touch(
+                        key,
+                        last,
+                        &hit.overlap,
+                        hit.velocity,
+                        this.material.wall_friction,
+                    );
+                    let last_force =
+                        last.map_or(Vec3::zeros(), |c| c.normal * c.normal_force + c.shear);
+                    t.wall_work = 0.5 * (last_force + t.force).dot(&hit.velocity) * this.dt;
+                    t.node_weights = hit.node_weights;
+                    if hit.couple != Vec3::zeros() {
+                        // The spots' moment does work as the body turns (the wall does not).
+                        t.couple = hit.couple * this.material.kn;
+                        t.contact.potential -= t.couple.dot(&b.omega()) * this.dt;
+                    }
+                    Some(t)
+                })
+                .collect()
         };
-        // Forces in a fixed order: each body adds its contacts in the order of `touches`
-        // (the order of a serial loop over them), on any number of threads. The body pairs'
-        // rows are made beside the wall contacts (alone they were 2.9 % of a step of the 2000
-        // I_P bed on 2 threads, the other thread idle), the walls' after.
-        let nb = self.bodies.len();
-        let pair_rows = || ends_by_body(&touches, 0, nb);
-        let (wall_touches, pair_rows) = if par {
-            rayon::join(wall_touches, pair_rows)
+        let (chunks, wall_touches) = if par {
+            rayon::join(pair_touches, wall_touches)
         } else {
-            (wall_touches(), pair_rows())
+            (pair_touches(), wall_touches())
         };
-        self.times.walls += lap();
-        let wall_rows = ends_by_body(&wall_touches.iter().collect::<Vec<_>>(), touches.len(), nb);
+        self.broad = broad;
+        self.separations = gaps;
+        let mut touches: Vec<&Touch> = chunks.iter().flatten().collect();
+        let pair_count = touches.len();
         touches.extend(&wall_touches);
-        let rows = [pair_rows, wall_rows];
-        self.times.assembly += lap();
+        self.times.narrow += lap();
         // Two independent halves, side by side on the pool: each body gathers its forces and
         // moves (damping, kick, drift, rotation), while the contact list, the walls' loads and
         // the energy sums are made from the touches. Each half reads the touches and writes
@@ -888,7 +887,8 @@ impl World {
         let (material, gravity) = (&*material, *gravity);
         let alpha = material.damping;
         let touches = &touches;
-        let gather_kick = |(i, b): (usize, &mut Body)| {
+        let nb = bodies.len();
+        let gather_kick = |(i, b): (usize, &mut Body), rows: &[(Vec<u32>, Vec<u32>); 2]| {
             if b.fixed {
                 return None;
             }
@@ -925,10 +925,12 @@ impl World {
         };
         // Bodies in runs: kicked and moved one by one, then turned four at a time, then
         // their kinetic energy taken.
-        let move_run = |(k, run): (usize, &mut [Body])| -> Vec<Option<[f64; 4]>> {
+        let move_run = |(k, run): (usize, &mut [Body]),
+                        rows: &[(Vec<u32>, Vec<u32>); 2]|
+         -> Vec<Option<[f64; 4]>> {
             let at = k * MOVE_RUN;
             let mut terms: Vec<Option<[f64; 4]>> = (run.iter_mut().enumerate())
-                .map(|(j, b)| gather_kick((at + j, b)))
+                .map(|(j, b)| gather_kick((at + j, b), rows))
                 .collect();
             free_rotations(run, dt);
             for (t, b) in terms.iter_mut().zip(run.iter()) {
@@ -939,17 +941,27 @@ impl World {
             terms
         };
         let mut move_bodies = || -> Vec<Option<[f64; 4]>> {
+            // Forces in a fixed order: each body adds its contacts in the order of `touches`
+            // (the order of a serial loop over them), on any number of threads. The rows are
+            // made here, beside the other half's first, serial loop (alone they were 2.9 %
+            // of a step of the 2000 I_P bed on 2 threads, the other thread idle).
+            let (pairs, walls) = touches.split_at(pair_count);
+            let rows = [
+                ends_by_body(pairs, 0, nb),
+                ends_by_body(walls, pair_count, nb),
+            ];
+            let rows = &rows;
             let runs: Vec<Vec<Option<[f64; 4]>>> = if par {
                 bodies
                     .par_chunks_mut(MOVE_RUN)
                     .enumerate()
-                    .map(move_run)
+                    .map(|run| move_run(run, rows))
                     .collect()
             } else {
                 bodies
                     .chunks_mut(MOVE_RUN)
                     .enumerate()
-                    .map(move_run)
+                    .map(|run| move_run(run, rows))
                     .collect()
             };
             runs.into_iter().flatten().collect()
