@@ -786,14 +786,21 @@ impl World {
             let mut at = pairs
                 .first()
                 .map_or(0, |&(i, j)| contacts.lower_bound(&(Partner::Body(i), j)));
+            // The touching pairs again, compact, for the force rows (read from the touches
+            // themselves, a cache line each, often in the other core's cache, they took 2.5x
+            // as long on 2 threads as on one).
+            let mut touching = Vec::new();
             for (pair, slot) in pairs.iter().zip(slots) {
-                touches.extend(narrow(pair, &mut at, slot));
+                if let Some(t) = narrow(pair, &mut at, slot) {
+                    touches.push(t);
+                    touching.push(*pair);
+                }
             }
-            touches
+            Chunk { touches, touching }
         };
         const CHUNK: usize = 256;
         let gaps_out = &mut gaps.0;
-        let mut pair_touches = move || -> Vec<Vec<Touch>> {
+        let mut pair_touches = move || -> Vec<Chunk> {
             if par {
                 (pairs.par_chunks(CHUNK))
                     .zip(gaps_out.par_chunks_mut(CHUNK))
@@ -864,7 +871,7 @@ impl World {
         };
         self.broad = broad;
         self.separations = gaps;
-        let mut touches: Vec<&Touch> = chunks.iter().flatten().collect();
+        let mut touches: Vec<&Touch> = chunks.iter().flat_map(|c| &c.touches).collect();
         let pair_count = touches.len();
         touches.extend(&wall_touches);
         self.times.narrow += lap();
@@ -945,7 +952,8 @@ impl World {
             // (the order of a serial loop over them), on any number of threads. The rows are
             // made here, beside the other half's first, serial loop (alone they were 2.9 %
             // of a step of the 2000 I_P bed on 2 threads, the other thread idle).
-            let (pairs, walls) = touches.split_at(pair_count);
+            let pairs = (chunks.iter().flat_map(|c| &c.touching)).map(|&(a, b)| (b, Some(a)));
+            let walls = touches[pair_count..].iter().map(|t| (t.key.1, None));
             let rows = [
                 ends_by_body(pairs, 0, nb),
                 ends_by_body(walls, pair_count, nb),
@@ -988,7 +996,7 @@ impl World {
             if *keep_structures {
                 let carry: Vec<Carry> = chunks
                     .iter()
-                    .flatten()
+                    .flat_map(|c| &c.touches)
                     .map(|t| match &t.kept {
                         Found::Kept => Carry::Kept(t.at),
                         Found::New(s) => Carry::New(s.packed().words()),
@@ -1031,19 +1039,20 @@ impl World {
     }
 }
 
-/// Each body's contact ends as compressed rows, in the order of `touches`: body `i`'s are
+/// Each body's contact ends as compressed rows, in the order of the touches: body `i`'s are
 /// `ends[start[i]..start[i + 1]]`, each a touch index (counted from `first`) times 2, plus 1
-/// for the body taking the force with a minus sign (body A of a pair).
-fn ends_by_body(touches: &[&Touch], first: usize, bodies: usize) -> (Vec<u32>, Vec<u32>) {
-    let partner = |t: &Touch| match t.key.0 {
-        Partner::Body(a) => Some(a as usize),
-        Partner::Wall(_) => None,
-    };
+/// for the body taking the force with a minus sign (body A of a pair). `touches` gives each
+/// touch's body B and, for a pair, body A.
+fn ends_by_body(
+    touches: impl Iterator<Item = (u32, Option<u32>)> + Clone,
+    first: usize,
+    bodies: usize,
+) -> (Vec<u32>, Vec<u32>) {
     let mut start = vec![0u32; bodies + 1];
-    for t in touches {
-        start[t.key.1 as usize + 1] += 1;
-        if let Some(a) = partner(t) {
-            start[a + 1] += 1;
+    for (b, a) in touches.clone() {
+        start[b as usize + 1] += 1;
+        if let Some(a) = a {
+            start[a as usize + 1] += 1;
         }
     }
     for i in 0..bodies {
@@ -1051,17 +1060,23 @@ fn ends_by_body(touches: &[&Touch], first: usize, bodies: usize) -> (Vec<u32>, V
     }
     let mut next = start.clone();
     let mut ends = vec![0u32; start[bodies] as usize];
-    for (k, t) in touches.iter().enumerate() {
-        let mut put = |body: usize, minus: u32| {
-            ends[next[body] as usize] = ((first + k) as u32) << 1 | minus;
-            next[body] += 1;
+    for (k, (b, a)) in touches.enumerate() {
+        let mut put = |body: u32, minus: u32| {
+            ends[next[body as usize] as usize] = ((first + k) as u32) << 1 | minus;
+            next[body as usize] += 1;
         };
-        put(t.key.1 as usize, 0);
-        if let Some(a) = partner(t) {
+        put(b, 0);
+        if let Some(a) = a {
             put(a, 1);
         }
     }
     (start, ends)
+}
+
+/// A chunk of the body pairs' touches, and the pairs (A, B) that touch, in the same order.
+struct Chunk {
+    touches: Vec<Touch>,
+    touching: Vec<(u32, u32)>,
 }
 
 /// Up to this many bytes of large hulls' vertices in all (the shapes', not the bodies'), their
