@@ -58,10 +58,10 @@ fn keep_their_energy(material: Material) {
 /// Test 6's conservative half at the paper's stiffness, kn = 1e8 N/m (ks = kn / 2): the drift
 /// falls with stiffness (above), and this is the stiffness the engine is for. About 30x the
 /// steps of the soft run (dt ~ 1/sqrt(kn)).
-/// Measured (2026-12-01, 2 threads): drift 0.038 J against a peak kinetic energy of 6.79 J
-/// (**0.56 %**), 2988 collisions (at most 6 contacts at once: at this stiffness an impact lasts
-/// microseconds), in 5.5 minutes (25 minutes on one thread in session 7, before the broad
-/// phase kept its pairs): part of `make test` since.
+/// Measured (2026-12-03, 2 threads): drift 0.043 J against a peak kinetic energy of 6.77 J
+/// (**0.63 %**), 2959 collisions (at most 4 contacts at once: at this stiffness an impact lasts
+/// microseconds), in 42 s (5.5 minutes in session 7, 25 on one thread before the broad phase
+/// kept its pairs): part of `make test`.
 #[test]
 fn two_hundred_mixed_polyhedra_in_a_box_keep_their_energy_at_the_papers_stiffness() {
     let paper = Material::default();
