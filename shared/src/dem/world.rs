@@ -297,12 +297,9 @@ impl Separations {
     }
 }
 
-/// What the narrow phase hands back for one touching pair.
-struct Touch {
-    key: ContactKey,
-    contact: Contact,
-    force: Vec3,
-    slip_energy: f64,
+/// What a wall contact hands back beside its [`Touch`] (kept apart, so that the touches,
+/// written by one thread and read by the other, are a fifth smaller).
+struct WallExtra {
     /// For facet walls: the share of the force each node carries.
     node_weights: Vec<(u32, f64)>,
     /// For a wall contact in separate spots: the moment of the spots' pushes about the
@@ -310,8 +307,16 @@ struct Touch {
     couple: Vec3,
     /// Work the partner's surface did on the body over the step, J: the mean of the last and
     /// this step's force over the surface's displacement (as the contact's stored work counts
-    /// it). Set for wall contacts only.
+    /// it).
     wall_work: f64,
+}
+
+/// What the narrow phase hands back for one touching pair.
+struct Touch {
+    key: ContactKey,
+    contact: Contact,
+    force: Vec3,
+    slip_energy: f64,
     /// The overlap's structure, to keep for the next step: `Found::Kept` is the one the contact
     /// kept, at `at` in the last step's list.
     kept: Found,
@@ -674,9 +679,6 @@ impl World {
             contact,
             force: n * fn_ + shear,
             slip_energy,
-            node_weights: Vec::new(),
-            couple: Vec3::zeros(),
-            wall_work: 0.0,
             kept: Found::None,
             at: 0,
         }
@@ -843,7 +845,7 @@ impl World {
         // the 2000 I_P bed, 0.44 us a contact on one thread; the poses and bodies they read
         // were in the other core's cache half the time), and on their own they left the
         // other thread idle.
-        let wall_touches = || -> Vec<Touch> {
+        let wall_touches = || -> Vec<(Touch, WallExtra)> {
             (wall_pairs.iter())
                 .filter_map(|&(i, w)| {
                     let b = &this.bodies[i as usize];
@@ -864,14 +866,17 @@ impl World {
                     );
                     let last_force =
                         last.map_or(Vec3::zeros(), |c| c.normal * c.normal_force + c.shear);
-                    t.wall_work = 0.5 * (last_force + t.force).dot(&hit.velocity) * this.dt;
-                    t.node_weights = hit.node_weights;
+                    let mut extra = WallExtra {
+                        node_weights: hit.node_weights,
+                        couple: Vec3::zeros(),
+                        wall_work: 0.5 * (last_force + t.force).dot(&hit.velocity) * this.dt,
+                    };
                     if hit.couple != Vec3::zeros() {
                         // The spots' moment does work as the body turns (the wall does not).
-                        t.couple = hit.couple * this.material.kn;
-                        t.contact.potential -= t.couple.dot(&b.omega()) * this.dt;
+                        extra.couple = hit.couple * this.material.kn;
+                        t.contact.potential -= extra.couple.dot(&b.omega()) * this.dt;
                     }
-                    Some(t)
+                    Some((t, extra))
                 })
                 .collect()
         };
@@ -884,7 +889,8 @@ impl World {
         self.separations = gaps;
         let mut touches: Vec<&Touch> = chunks.iter().flat_map(|c| &c.touches).collect();
         let pair_count = touches.len();
-        touches.extend(&wall_touches);
+        touches.extend(wall_touches.iter().map(|(t, _)| t));
+        let extra = |k: usize| k.checked_sub(pair_count).map(|w| &wall_touches[w].1);
         self.times.narrow += lap();
         // Two independent halves, side by side on the pool: each body gathers its forces and
         // moves (damping, kick, drift, rotation), while the contact list, the walls' loads and
@@ -914,8 +920,10 @@ impl World {
             let ends = (rows.iter())
                 .flat_map(|(start, ends)| &ends[start[i] as usize..start[i + 1] as usize]);
             for &e in ends {
-                let t = &touches[(e >> 1) as usize];
-                let arm = (t.contact.point - b.pos).cross(&t.force) + t.couple;
+                let k = (e >> 1) as usize;
+                let t = &touches[k];
+                let couple = extra(k).map_or(Vec3::zeros(), |x| x.couple);
+                let arm = (t.contact.point - b.pos).cross(&t.force) + couple;
                 if e & 1 == 0 {
                     force += t.force;
                     torque += arm;
@@ -992,11 +1000,11 @@ impl World {
             let mut elastic = 0.0;
             let mut wall_work = 0.0;
             let mut contact_force = 0.0;
-            for t in touches {
+            for (k, t) in touches.iter().enumerate() {
                 contact_force += t.force.norm();
-                if let Partner::Wall(w) = t.key.0 {
-                    walls[w as usize].push(&-t.force, &t.node_weights);
-                    wall_work += t.wall_work;
+                if let (Partner::Wall(w), Some(x)) = (t.key.0, extra(k)) {
+                    walls[w as usize].push(&-t.force, &x.node_weights);
+                    wall_work += x.wall_work;
                 }
                 elastic += t.contact.elastic_energy(material);
                 energy.friction += t.slip_energy;
