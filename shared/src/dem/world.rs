@@ -1173,8 +1173,9 @@ fn parallel(bodies: usize) -> bool {
 
 /// Runs `f`, a loop of steps, on a thread of rayon's pool (the caller waits), so that a step's
 /// loops are handed to the pool's other threads directly instead of each through the pool's
-/// queue to a sleeping thread and back (with the steps keeping the pool awake, `Awake`: 0.95x the time of 1000 steps of the
-/// 2000 I_P bed on 2 threads). The results are the same wherever the steps run.
+/// queue to a sleeping thread and back (with the steps keeping the pool awake, `Awake`: 0.95x
+/// the time of 1000 steps of the 2000 I_P bed on 2 threads). The results are the same wherever
+/// the steps run.
 pub fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     rayon::scope(|_| f())
 }
