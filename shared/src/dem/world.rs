@@ -1547,12 +1547,12 @@ mod tests {
         out
     }
 
-    /// Guards [`Awake`]: two worlds stepped side by side on one pool of two threads, where
-    /// each stepping thread's idle moments can run the other world's keep-awake loop (which
-    /// must then end on its own), finish, and each ends as it does stepped alone on two threads
-    /// and on one.
+    /// Guards [`Awake`] and [`Buffers`]: two worlds stepped side by side on one pool of two
+    /// threads, where each stepping thread's idle moments can run the other world's keep-awake
+    /// loop (which must then end on its own), finish, and each ends as it does stepped alone
+    /// on two threads, on one, and on two and then one.
     #[test]
-    fn two_worlds_stepped_side_by_side_on_one_pool_end_as_each_alone() {
+    fn worlds_stepped_side_by_side_or_moved_between_pools_end_as_each_alone() {
         let w = block();
         assert!(
             w.bodies.len() >= PARALLEL_MIN_BODIES,
@@ -1568,8 +1568,13 @@ mod tests {
         let (one, other) =
             pool(2).install(|| rayon::join(|| stepped(w.clone(), 300), || stepped(w.clone(), 300)));
         let two = pool(2).install(|| stepped(w.clone(), 300));
+        // One world moved between pools halfway, its kept buffers with it (`Buffers`: one
+        // pool per thread, three slots and then two).
+        let mut moved = w.clone();
+        pool(2).install(|| on_pool(|| (0..150).for_each(|_| moved.step())));
+        let moved = pool(1).install(|| stepped(moved, 150));
         assert!(alone != stepped(w.clone(), 0), "the bodies moved");
-        assert!(one == alone && other == alone && two == alone);
+        assert!(one == alone && other == alone && two == alone && moved == alone);
         let mut touched = w;
         touched.step();
         assert!(
