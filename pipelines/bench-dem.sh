@@ -117,18 +117,14 @@ if [ -f "$out/ab3soft500.jsonl" ]; then
     done
   done
 fi
-# The same on the bed at equal contacts: the 2000 Ab_3 bed of the nine templates, ids
-# along space, its hulls cut to a vertex budget and settled again (0.3 s simulated at most, to
-# an unbalanced-force ratio of 1e-2; about 30 s each, once), so each keeps about 5 contacts
-# per particle instead of losing those the cut opens.
+# The same on the bed at equal contacts: the 2000 Ab_3 bed of the nine templates, its
+# hulls cut to a vertex budget and settled again (`settle-peer.sh cut`; about 30 s each, once),
+# so each keeps about 5 contacts per particle instead of losing those the cut opens.
 if [ -f "$out/ab3nine2000.jsonl" ]; then
   for budget in 200 100 50; do
     cut=$out/ab3nine2000-v$budget.jsonl
-    if [ ! -f "$cut" ]; then
-      echo "bench-dem: making $cut (cut to $budget vertices and settled again; once)"
-      dem --renumber --simplify "$budget" --time 0.3 --until-unbalanced 1e-2 \
-        < "$out/ab3nine2000.jsonl" > "$cut" 2> "${cut%.jsonl}.log"
-    fi
+    make_bed "$cut" "cut to $budget vertices and settled again" cut "$budget" \
+      "$out/ab3nine2000.jsonl" "$cut"
     for th in 1 2; do
       row "2000 Ab_3 bed cut to $budget vertices, settled" "$th" --steps "$steps" < "$cut"
     done

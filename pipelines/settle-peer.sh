@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Settles the peer benchmark's scenes (../shared/peers/yade) under our own contact law, for the
-# engine benchmark (pipelines/bench-dem.sh). Three steps, each a mode:
+# engine benchmark (pipelines/bench-dem.sh). Each step a mode:
 #
 #   settle-peer.sh soft N OUT.jsonl
 #       The N-particle scene (500: from Yade's settled state; 2000, 5000: from the falling
@@ -16,6 +16,11 @@
 #       Every particle of a settled bed turned into its Ab_K hull in place (`dem --abrade K`),
 #       then settled again the same way for at most 0.5 s (the abraded particles are smaller:
 #       the bed loosens and sinks).
+#   settle-peer.sh cut V IN.jsonl OUT.jsonl
+#       Every hull of a settled bed cut to V vertices in place (`dem --simplify V`, inside the
+#       full hulls, so contacts open), the ids renumbered along space, then settled again at
+#       the bed's own stiffness for at most 0.3 s, until the ratio is below 1e-2: about as many
+#       contacts per particle as the full hulls' bed.
 #   settle-peer.sh stiffen IN.jsonl OUT.jsonl [R [STEPS]]
 #       A soft bed stiffened tenfold per stage up to the paper's kn = 1e8 N/m (ks = kn / 2),
 #       local damping DAMP (default 0.7), each stage until the ratio is below R (1e-2) or STEPS
@@ -54,6 +59,12 @@ case $mode in
     levels=$1 in=$2 out=$3
     echo "settle-peer: $in as Ab_$levels hulls, settling again at kn = 5e3 N/m" >&2
     dem --abrade "$levels" "${soft[@]}" --time 0.5 < "$in" > "$out.tmp"
+    ;;
+  cut)
+    [ $# -eq 3 ] || usage
+    vertices=$1 in=$2 out=$3
+    echo "settle-peer: $in cut to $vertices vertices a hull, settling again" >&2
+    dem --renumber --simplify "$vertices" --time 0.3 --until-unbalanced 1e-2 < "$in" > "$out.tmp"
     ;;
   stiffen)
     [ $# -ge 2 ] && [ $# -le 4 ] || usage

@@ -254,6 +254,19 @@ impl Side {
         }
         self.reach.sort_unstable();
     }
+
+    /// Vertex `i` of `p` (a posed `s`) and its height along the last climb's direction: as
+    /// the climb or its walk computed them, else computed now (the same numbers).
+    fn point(&self, s: &Shape, p: &Posed, n: &Vec3, sign: f64, i: usize) -> (Vec3, f64) {
+        if s.climb.is_none() {
+            return (p.vertices[i], self.heights[i]);
+        }
+        if self.height_stamps[i] == self.stamp {
+            return (self.points[i], self.heights[i]);
+        }
+        let v = p.vertex(s, i);
+        (v, sign * n.dot(&v))
+    }
 }
 
 /// Vertex `i`'s height `sign n . v`, computed the first time this climb (`stamp`) asks for it.
@@ -273,21 +286,6 @@ fn lazy_height(
         stamps[i] = stamp;
     }
     heights[i]
-}
-
-impl Side {
-    /// Vertex `i` of `p` (a posed `s`) and its height along the last climb's direction: as
-    /// the climb or its walk computed them, else computed now (the same numbers).
-    fn point(&self, s: &Shape, p: &Posed, n: &Vec3, sign: f64, i: usize) -> (Vec3, f64) {
-        if s.climb.is_none() {
-            return (p.vertices[i], self.heights[i]);
-        }
-        if self.height_stamps[i] == self.stamp {
-            return (self.points[i], self.heights[i]);
-        }
-        let v = p.vertex(s, i);
-        (v, sign * n.dot(&v))
-    }
 }
 
 /// Cutting planes beyond this many are tested face by face instead of by vertex codes.

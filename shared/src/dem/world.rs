@@ -888,9 +888,7 @@ impl World {
         self.broad = broad;
         self.separations = gaps;
         let mut touches: Vec<&Touch> = chunks.iter().flat_map(|c| &c.touches).collect();
-        let pair_count = touches.len();
         touches.extend(wall_touches.iter().map(|(t, _)| t));
-        let extra = |k: usize| k.checked_sub(pair_count).map(|w| &wall_touches[w].1);
         self.times.narrow += lap();
         // Two independent halves, side by side on the pool: each body gathers its forces and
         // moves (damping, kick, drift, rotation), while the contact list, the walls' loads and
@@ -917,12 +915,16 @@ impl World {
                 return None;
             }
             let (mut force, mut torque) = (gravity * b.mass, Vec3::zeros());
-            let ends = (rows.iter())
-                .flat_map(|(start, ends)| &ends[start[i] as usize..start[i + 1] as usize]);
-            for &e in ends {
-                let k = (e >> 1) as usize;
-                let t = &touches[k];
-                let couple = extra(k).map_or(Vec3::zeros(), |x| x.couple);
+            // The body pairs' touches first, then the walls' (the order of `touches`).
+            let [(pair_start, pair_ends), (wall_start, wall_ends)] = rows;
+            let pair_row = &pair_ends[pair_start[i] as usize..pair_start[i + 1] as usize];
+            let wall_row = &wall_ends[wall_start[i] as usize..wall_start[i + 1] as usize];
+            let pairs = (pair_row.iter()).map(|&e| (touches[(e >> 1) as usize], Vec3::zeros(), e));
+            let walls = (wall_row.iter()).map(|&e| {
+                let (t, x) = &wall_touches[(e >> 1) as usize];
+                (t, x.couple, e)
+            });
+            for (t, couple, e) in pairs.chain(walls) {
                 let arm = (t.contact.point - b.pos).cross(&t.force) + couple;
                 if e & 1 == 0 {
                     force += t.force;
@@ -972,11 +974,8 @@ impl World {
             // made here, beside the other half's first, serial loop (alone they were 2.9 %
             // of a step of the 2000 I_P bed on 2 threads, the other thread idle).
             let pairs = (chunks.iter().flat_map(|c| &c.touching)).map(|&(a, b)| (b, Some(a)));
-            let walls = touches[pair_count..].iter().map(|t| (t.key.1, None));
-            let rows = [
-                ends_by_body(pairs, 0, nb),
-                ends_by_body(walls, pair_count, nb),
-            ];
+            let walls = wall_touches.iter().map(|(t, _)| (t.key.1, None));
+            let rows = [ends_by_body(pairs, nb), ends_by_body(walls, nb)];
             let rows = &rows;
             let runs: Vec<Vec<Option<[f64; 4]>>> = if par {
                 bodies
@@ -1000,14 +999,16 @@ impl World {
             let mut elastic = 0.0;
             let mut wall_work = 0.0;
             let mut contact_force = 0.0;
-            for (k, t) in touches.iter().enumerate() {
+            for t in touches {
                 contact_force += t.force.norm();
-                if let (Partner::Wall(w), Some(x)) = (t.key.0, extra(k)) {
+                elastic += t.contact.elastic_energy(material);
+                energy.friction += t.slip_energy;
+            }
+            for (t, x) in &wall_touches {
+                if let Partner::Wall(w) = t.key.0 {
                     walls[w as usize].push(&-t.force, &x.node_weights);
                     wall_work += x.wall_work;
                 }
-                elastic += t.contact.elastic_energy(material);
-                energy.friction += t.slip_energy;
             }
             let last_kept = contacts.take_kept();
             contacts.refill(touches, par, |t| t.key, |t| t.contact.clone());
@@ -1061,12 +1062,11 @@ impl World {
 }
 
 /// Each body's contact ends as compressed rows, in the order of the touches: body `i`'s are
-/// `ends[start[i]..start[i + 1]]`, each a touch index (counted from `first`) times 2, plus 1
-/// for the body taking the force with a minus sign (body A of a pair). `touches` gives each
-/// touch's body B and, for a pair, body A.
+/// `ends[start[i]..start[i + 1]]`, each a touch index times 2, plus 1 for the body taking the
+/// force with a minus sign (body A of a pair). `touches` gives each touch's body B and, for a
+/// pair, body A.
 fn ends_by_body(
     touches: impl Iterator<Item = (u32, Option<u32>)> + Clone,
-    first: usize,
     bodies: usize,
 ) -> (Vec<u32>, Vec<u32>) {
     let mut start = vec![0u32; bodies + 1];
@@ -1083,7 +1083,7 @@ fn ends_by_body(
     let mut ends = vec![0u32; start[bodies] as usize];
     for (k, (b, a)) in touches.enumerate() {
         let mut put = |body: u32, minus: u32| {
-            ends[next[body as usize] as usize] = ((first + k) as u32) << 1 | minus;
+            ends[next[body as usize] as usize] = (k as u32) << 1 | minus;
             next[body as usize] += 1;
         };
         put(b, 0);
