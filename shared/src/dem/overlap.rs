@@ -439,7 +439,7 @@ fn clip_faces(
 }
 
 /// The positions of the set bits of `bits`, ascending.
-fn set_bits(mut bits: u64) -> impl Iterator<Item = usize> {
+pub(super) fn set_bits(mut bits: u64) -> impl Iterator<Item = usize> {
     std::iter::from_fn(move || {
         (bits != 0).then(|| {
             let k = bits.trailing_zeros() as usize;
