@@ -168,8 +168,9 @@ impl<'a> Pair<'a> {
     /// Calls `near(f, inside)` for each face whose plane `p` may be nearer to than
     /// [`NEAR_REL`] x size (to round-off: the caller checks those in world coordinates, as
     /// [`Pair::vertex_inside`] will), with how far inside it `p` is less its round-off, and
-    /// returns the least distance inside the others, less its round-off (infinite when there
-    /// are none). Distances of the frame change's round-off, ~1e-16 of the positions, are far
+    /// returns a lower bound on the least distance inside the others, less its round-off
+    /// (infinite when there are none; for a large body the bound of each group of planes
+    /// facing away, see [`super::shape::Climb::clearances`]). Distances of the frame change's round-off, ~1e-16 of the positions, are far
     /// inside the allowance of 1e-3 x the margin.
     fn far_clearance(&self, side: u8, p: &Vec3, mut near: impl FnMut(u32, f64)) -> f64 {
         let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
