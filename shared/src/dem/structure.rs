@@ -289,7 +289,8 @@ impl<'a> Pair<'a> {
     /// planes; an edge's ends too, and its crossing of a plane at an angle, with ends `s_i`
     /// and `s_j` off it (`D = s_i - s_j`, edge length `L`), by at most
     /// `3 delta + L delta / (|D| - 2 delta)`, which is below `(3 + 2 L / |D|) delta` while
-    /// `delta <= |D| / 4`; the crossing must then stay inside the other planes by the margin.
+    /// `delta <= |D| / 4`; the crossing must then stay inside the other planes by the margin
+    /// (against a large body, inside its face's polygon: the edges' lines in the face's plane).
     fn budget(&self, c: Corner) -> f64 {
         let m = self.margin;
         let slack = 1e-3 * m;
@@ -301,16 +302,15 @@ impl<'a> Pair<'a> {
                 let v = self.vertex(side, i);
                 self.clearance_within(1 - side, &v, u32::MAX) - m
             }
-            // Against a large body an edge's crossing must stay inside a small triangle, and
-            // the contacts there are thin (edges at a small angle to the faces they cross):
-            // on the 2000 Ab_3 bed budgets spared only 22 % of these checks and the step
-            // took 4 % longer. They are checked every step.
-            Corner::Edge { side, .. } if self.large[1 - side as usize] => return 0.0,
             Corner::Edge { side, i, j, face } => {
                 let e = self.edge_on_plane(side, i, j, face);
                 let ([vi, vj], [si, sj]) = (e.ends, e.above);
                 let span = (si - sj).abs();
-                let clear = self.clearance_within(1 - side, &e.crossing(), face);
+                let clear = if self.large[1 - side as usize] {
+                    self.face_clearance(1 - side, face, &e.normal, &e.crossing())
+                } else {
+                    self.clearance_within(1 - side, &e.crossing(), face)
+                };
                 let length = (vj - vi).norm();
                 (si.abs() - m)
                     .min(sj.abs() - m)
@@ -319,6 +319,28 @@ impl<'a> Pair<'a> {
             }
         };
         (left - slack).max(0.0)
+    }
+
+    /// How far `p`, on the plane (normal `n`) of face `f` of body `side`, lies inside the
+    /// face's polygon: the least distance from its edges' lines (large bodies).
+    fn face_clearance(&self, side: u8, f: u32, n: &Vec3, p: &Vec3) -> f64 {
+        let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
+        let face = s.face(f as usize);
+        let least = |vs: &[Vec3], n: &Vec3, p: &Vec3| {
+            let mut u = vs[face[face.len() - 1] as usize];
+            face.iter().fold(f64::INFINITY, |least, &w| {
+                let w = vs[w as usize];
+                let inward = n.cross(&(w - u));
+                let t = inward.dot(&(p - u)) / inward.norm();
+                u = w;
+                least.min(t)
+            })
+        };
+        if !posed.vertices.is_empty() {
+            return least(&posed.vertices, n, p);
+        }
+        let at = posed.rot.inverse_transform_vector(&(p - posed.pos)) / posed.scale;
+        least(&s.vertices, &s.normals[f as usize], &at) * posed.scale
     }
 
     /// How far `p` is inside every face plane of body `side` but `skip` (small bodies).
@@ -1158,29 +1180,42 @@ mod tests {
                         }
                         _ => direction(&mut rng),
                     };
-                    let shift = d * (0.9 * budget * share / d.lp_norm(1));
-                    let axis = direction(&mut rng);
-                    let sine = 0.9 * budget * (1.0 - share) / (2.0 * sb.radius * axis.lp_norm(1));
-                    let turn = UnitQuaternion::new(axis * (2.0 * sine.min(1.0).asin()));
-                    let q = turn * UnitQuaternion::from_rotation_matrix(&b.rot);
-                    let moved = sb.posed(&(b.pos + shift), &q, 1.0);
-                    let found = [
-                        (a.pos, a.orientation, a.scale),
-                        (b.pos, b.orientation, b.scale),
-                    ];
-                    let now = Pair::new(sa, &a, sb, &moved).unwrap();
-                    let bound = now.moved_since(&found);
-                    assert!(bound <= budget, "motion {bound} over the budget {budget}");
-                    assert!(
-                        now.corner(c).is_some(),
-                        "{c:?} failed within its budget {budget}"
-                    );
+                    moved_within_budget(&mut rng, (sa, &a), (sb, &b), c, budget, (d, share));
                 }
             }
         }
         assert!(
             budgets > tried / 2,
             "{budgets} of {tried} corners had budgets"
+        );
+    }
+
+    /// B shifted along `d` and turned about a random axis by nine tenths of `budget`, `share`
+    /// of it by the shift (the bound counts `|shift|_1 + 2 r |sin(angle / 2) axis|_1`): the
+    /// motion bound is within the budget and corner `c` is still a corner.
+    fn moved_within_budget(
+        rng: &mut impl RngCore,
+        (sa, a): (&Shape, &Posed),
+        (sb, b): (&Shape, &Posed),
+        c: Corner,
+        budget: f64,
+        (d, share): (Vec3, f64),
+    ) {
+        let shift = d * (0.9 * budget * share / d.lp_norm(1));
+        let axis = direction(rng);
+        let sine = 0.9 * budget * (1.0 - share) / (2.0 * sb.radius * axis.lp_norm(1));
+        let turn = UnitQuaternion::new(axis * (2.0 * sine.min(1.0).asin()));
+        let moved = sb.posed(&(b.pos + shift), &(turn * b.orientation), 1.0);
+        let found = [
+            (a.pos, a.orientation, a.scale),
+            (b.pos, b.orientation, b.scale),
+        ];
+        let now = Pair::new(sa, a, sb, &moved).unwrap();
+        let bound = now.moved_since(&found);
+        assert!(bound <= budget, "motion {bound} over the budget {budget}");
+        assert!(
+            now.corner(c).is_some(),
+            "{c:?} failed within its budget {budget}"
         );
     }
 
@@ -1211,6 +1246,29 @@ mod tests {
         out
     }
 
+    /// A thin contact of `sa` and `sb` at random orientations: B along a random direction
+    /// `dir` (turned by `q`), pressed into A by 1e-4 to 1e-2 of its radius from first touch.
+    fn thin_contact(
+        rng: &mut impl RngCore,
+        sa: &Shape,
+        sb: &Shape,
+    ) -> (Posed, Posed, Vec3, UnitQuaternion<f64>) {
+        let a = sa.posed(&Vec3::zeros(), &rotation(rng, 3.2), 1.0);
+        let (dir, q) = (direction(rng), rotation(rng, 3.2));
+        let at = |d: f64| sb.posed(&(dir * d), &q, 1.0);
+        let (mut lo, mut hi) = (0.0, sa.radius + sb.radius);
+        for _ in 0..50 {
+            let mid = 0.5 * (lo + hi);
+            if overlap_parts(sa, &a, sb, &at(mid), &dir).is_some() {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let press = sb.radius * 10f64.powf(-4.0 + 2.0 * unit_f64(rng.next_u64()));
+        (a, at(hi - press), dir, q)
+    }
+
     #[test]
     fn large_hulls_keep_structures_checked_locally() {
         // Thin contacts of Ab_3 hulls (with each other and with an I_P body), pressed in by
@@ -1223,20 +1281,7 @@ mod tests {
         for t in 0..trials {
             let (i, j) = [(0, 1), (1, 2), (2, 0)][t % 3];
             let (sa, sb) = (&shapes[i], &shapes[j]);
-            let a = sa.posed(&Vec3::zeros(), &rotation(&mut rng, 3.2), 1.0);
-            let (dir, q) = (direction(&mut rng), rotation(&mut rng, 3.2));
-            let at = |d: f64| sb.posed(&(dir * d), &q, 1.0);
-            let (mut lo, mut hi) = (0.0, sa.radius + sb.radius);
-            for _ in 0..50 {
-                let mid = 0.5 * (lo + hi);
-                if overlap_parts(sa, &a, sb, &at(mid), &dir).is_some() {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            let press = sb.radius * 10f64.powf(-4.0 + 2.0 * unit_f64(rng.next_u64()));
-            let b = at(hi - press);
+            let (a, b, dir, q) = thin_contact(&mut rng, sa, sb);
             let (clipped, _) = overlap_parts(sa, &a, sb, &b, &dir).unwrap();
             let Some((o, Found::New(s))) = overlap_kept(sa, &a, sb, &b, &dir, None, true) else {
                 continue;
@@ -1271,6 +1316,49 @@ mod tests {
             "{structured} of {trials} structured"
         );
         assert!(held > 40 && changed > 10, "held {held}, changed {changed}");
+    }
+
+    /// The budget of an edge corner against a large hull (its crossing must stay inside a
+    /// facet): B moved and turned by nine tenths of it, at random, leaves the corner a corner,
+    /// on thin contacts of Ab_3 hulls with each other and with an I_P body.
+    #[test]
+    fn an_edge_on_a_large_hull_moved_within_its_budget_passes_its_checks() {
+        let shapes = large_shapes();
+        let mut rng = ChaCha8Rng::seed_from_u64(23);
+        let (mut tried, mut budgets) = (0, 0);
+        for t in 0..60 {
+            let (i, j) = [(0, 1), (1, 2), (2, 0)][t % 3];
+            let (sa, sb) = (&shapes[i], &shapes[j]);
+            let (a, b, _, _) = thin_contact(&mut rng, sa, sb);
+            let Some(pair) = Pair::new(sa, &a, sb, &b) else {
+                continue;
+            };
+            let Some(s) = discover(&pair, [&all(sa), &all(sb)], [&faces(sa), &faces(sb)]) else {
+                continue;
+            };
+            let edges = (s.packed().sections().corners.chunks_exact(4))
+                .map(corner_of)
+                .filter(
+                    |c| matches!(c, Corner::Edge { side, .. } if pair.large[1 - *side as usize]),
+                );
+            for c in edges {
+                let budget = pair.budget(c);
+                tried += 1;
+                if budget <= 0.0 {
+                    continue;
+                }
+                budgets += 1;
+                for _ in 0..4 {
+                    let share = unit_f64(rng.next_u64());
+                    let d = direction(&mut rng);
+                    moved_within_budget(&mut rng, (sa, &a), (sb, &b), c, budget, (d, share));
+                }
+            }
+        }
+        assert!(
+            tried > 200 && budgets > tried / 2,
+            "{budgets} of {tried} edge corners had budgets"
+        );
     }
 
     #[test]
