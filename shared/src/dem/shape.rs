@@ -738,8 +738,9 @@ mod tests {
 
     /// [`Climb::clearances`] skips groups of planes by a bound: it must name the same near
     /// planes, with the same distances, as a scan over every plane, and a lower bound, no less
-    /// than the limit, on the least distance of the others. Points inside near the surface (where a contact's
-    /// vertices are), deep inside, and outside; limits from 0 to the whole body.
+    /// than the limit, on the least distance of the others. Points inside near the surface
+    /// (where a contact's vertices are), deep inside, and outside; limits from 0 to the whole
+    /// body.
     #[test]
     fn grouped_plane_clearances_bound_a_full_scan() {
         use crate::polygen::{generate, Params};

@@ -187,8 +187,8 @@ impl<'a> Pair<'a> {
     /// [`Pair::vertex_inside`] will), with how far inside it `p` is less its round-off, and
     /// returns a lower bound on the least distance inside the others, less its round-off
     /// (infinite when there are none; for a large body the bound of each group of planes
-    /// facing away, see [`super::shape::Climb::clearances`]). Distances of the frame change's round-off, ~1e-16 of the positions, are far
-    /// inside the allowance of 1e-3 x the margin.
+    /// facing away, see [`super::shape::Climb::clearances`]). Distances of the frame change's
+    /// round-off, ~1e-16 of the positions, are far inside the allowance of 1e-3 x the margin.
     fn far_clearance(&self, side: u8, p: &Vec3, mut near: impl FnMut(u32, f64)) -> f64 {
         let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
         let local = posed.rot.inverse_transform_vector(&(p - posed.pos));
@@ -461,8 +461,8 @@ thread_local! {
 
 /// A number that orders the directions `(x, y)` in the plane as their angle `atan2(y, x)` does,
 /// up to the turn at +-pi (a ring is cyclic: it is rotated to its lowest corner after): from
-/// -2 (towards -x, below) through 0 (+x) to 2 (towards -x, above). No `atan2`: a ring's
-/// corners were 8 % of the time of finding a structure.
+/// -2 (towards -x, below) through 0 (+x) to 2 (towards -x, above). No `atan2` (2-3 % of the
+/// time of finding an Ab_3 structure).
 fn pseudo_angle(x: f64, y: f64) -> f64 {
     let l1 = x.abs() + y.abs();
     if l1 == 0.0 {
