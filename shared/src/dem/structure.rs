@@ -159,11 +159,13 @@ impl<'a> Pair<'a> {
     }
 
     /// World position of vertex `i` of body `side`.
+    #[inline(always)]
     fn vertex(&self, side: u8, i: u32) -> Vec3 {
         self.posed[side as usize].vertex(self.shapes[side as usize], i as usize)
     }
 
     /// World plane of face `f` of body `side`.
+    #[inline(always)]
     fn plane(&self, side: u8, f: u32) -> (Vec3, f64) {
         self.posed[side as usize].plane(self.shapes[side as usize], f as usize)
     }
