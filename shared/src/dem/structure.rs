@@ -235,27 +235,35 @@ impl<'a> Pair<'a> {
     /// body's own frame, on its shape's vertices (posing them for it, when a large hull's are
     /// posed as read, was most of the cost of a kept Ab_3 contact).
     fn in_face(&self, side: u8, f: u32, n: &Vec3, p: &Vec3) -> bool {
+        self.on_face(side, f, n, p, |face, vs, n, p, inv| {
+            let m = self.margin * inv;
+            face_edges(face, vs, n, p)
+                .all(|(inward, t)| t > 0.0 && t * t > m * m * inward.norm_squared())
+        })
+    }
+
+    /// `test` of face `f` of body `side` (its corners, the vertices they index, its normal) and
+    /// `p` (world, on the plane of normal `n`), with the inverse of the frame's unit in world
+    /// lengths: on the posed vertices when the body has them (1); else in the body's own
+    /// frame, on its shape's vertices and normal (one over the body's scale).
+    #[inline(always)]
+    fn on_face<R>(
+        &self,
+        side: u8,
+        f: u32,
+        n: &Vec3,
+        p: &Vec3,
+        test: impl FnOnce(&[u32], &[Vec3], Vec3, Vec3, f64) -> R,
+    ) -> R {
         let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
         let face = s.face(f as usize);
-        let inside = |vs: &[Vec3], n: &Vec3, p: &Vec3, m: f64| {
-            // Each edge (u, w), from the last corner's round to the first.
-            let mut u = vs[face[face.len() - 1] as usize];
-            face.iter().all(|&w| {
-                let w = vs[w as usize];
-                // Inward in the plane for a face counter-clockwise about its outward normal.
-                let inward = n.cross(&(w - u));
-                let t = inward.dot(&(p - u));
-                u = w;
-                t > 0.0 && t * t > m * m * inward.norm_squared()
-            })
-        };
         if !posed.vertices.is_empty() {
-            return inside(&posed.vertices, n, p, self.margin);
+            return test(face, &posed.vertices, *n, *p, 1.0);
         }
-        // One division: the check is by a margin far above the round-off this changes.
+        // One division: the checks are by a margin far above the round-off this changes.
         let inv = 1.0 / posed.scale;
         let at = posed.rot.inverse_transform_vector(&(p - posed.pos)) * inv;
-        inside(&s.vertices, &s.normals[f as usize], &at, self.margin * inv)
+        test(face, &s.vertices, s.normals[f as usize], at, inv)
     }
 
     /// Where corner `c` is, or `None` when it is not robustly a corner of the overlap; with
@@ -331,23 +339,11 @@ impl<'a> Pair<'a> {
     /// How far `p`, on the plane (normal `n`) of face `f` of body `side`, lies inside the
     /// face's polygon: the least distance from its edges' lines (large bodies).
     fn face_clearance(&self, side: u8, f: u32, n: &Vec3, p: &Vec3) -> f64 {
-        let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
-        let face = s.face(f as usize);
-        let least = |vs: &[Vec3], n: &Vec3, p: &Vec3| {
-            let mut u = vs[face[face.len() - 1] as usize];
-            face.iter().fold(f64::INFINITY, |least, &w| {
-                let w = vs[w as usize];
-                let inward = n.cross(&(w - u));
-                let t = inward.dot(&(p - u)) / inward.norm();
-                u = w;
-                least.min(t)
-            })
-        };
-        if !posed.vertices.is_empty() {
-            return least(&posed.vertices, n, p);
-        }
-        let at = posed.rot.inverse_transform_vector(&(p - posed.pos)) / posed.scale;
-        least(&s.vertices, &s.normals[f as usize], &at) * posed.scale
+        self.on_face(side, f, n, p, |face, vs, n, p, inv| {
+            face_edges(face, vs, n, p).fold(f64::INFINITY, |least, (inward, t)| {
+                least.min(t / inward.norm())
+            }) / inv
+        })
     }
 
     /// How far `p` is inside every face plane of body `side` but `skip` (small bodies).
@@ -418,6 +414,26 @@ impl<'a> Pair<'a> {
         }
         out.sort_unstable();
     }
+}
+
+/// For each edge `(u, w)` of `face` (its corners in `vs`, counter-clockwise about the outward
+/// normal `n`), from the last corner's round to the first: the edge's inward normal in the
+/// plane, `n x (w - u)`, and `p`'s distance inside the edge's line times that normal's length.
+#[inline(always)]
+fn face_edges<'f>(
+    face: &'f [u32],
+    vs: &'f [Vec3],
+    n: Vec3,
+    p: Vec3,
+) -> impl Iterator<Item = (Vec3, f64)> + 'f {
+    let last = vs[face[face.len() - 1] as usize];
+    face.iter().scan(last, move |u, &w| {
+        let w = vs[w as usize];
+        let inward = n.cross(&(w - *u));
+        let t = inward.dot(&(p - *u));
+        *u = w;
+        Some((inward, t))
+    })
 }
 
 /// An edge of one body against a face plane of the other: the plane's normal, the edge's ends
@@ -1151,14 +1167,7 @@ mod tests {
             let Some(s) = discover(&pair, [&all(sa), &all(sb)], [&faces(sa), &faces(sb)]) else {
                 continue;
             };
-            let corners: Vec<Corner> = s
-                .packed()
-                .sections()
-                .corners
-                .chunks_exact(4)
-                .map(corner_of)
-                .collect();
-            for c in corners {
+            for c in corners_of(&s) {
                 let budget = pair.budget(c);
                 tried += 1;
                 if budget <= 0.0 {
@@ -1224,6 +1233,12 @@ mod tests {
             now.corner(c).is_some(),
             "{c:?} failed within its budget {budget}"
         );
+    }
+
+    /// A structure's corners, in order.
+    fn corners_of(s: &Structure) -> Vec<Corner> {
+        let words = s.packed().sections().corners;
+        words.chunks_exact(4).map(corner_of).collect()
     }
 
     fn all(s: &Shape) -> Vec<u32> {
@@ -1343,12 +1358,8 @@ mod tests {
             let Some(s) = discover(&pair, [&all(sa), &all(sb)], [&faces(sa), &faces(sb)]) else {
                 continue;
             };
-            let edges = (s.packed().sections().corners.chunks_exact(4))
-                .map(corner_of)
-                .filter(
-                    |c| matches!(c, Corner::Edge { side, .. } if pair.large[1 - *side as usize]),
-                );
-            for c in edges {
+            let large_edge = |c: &Corner| matches!(c, Corner::Edge { side, .. } if pair.large[1 - *side as usize]);
+            for c in corners_of(&s).into_iter().filter(large_edge) {
                 let budget = pair.budget(c);
                 tried += 1;
                 if budget <= 0.0 {
