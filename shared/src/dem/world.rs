@@ -24,7 +24,7 @@
 //! dissipation - work of gravity - work of moving walls is constant; [`Energy::balance`].
 
 use super::broad::{overlap as overlap_boxes, Aabb, Broad};
-use super::contacts::{Carry, Contacts};
+use super::contacts::{Carry, Contacts, Cursor, Part};
 use super::gjk::Hints;
 use super::overlap::{centre_line, gap_proof, overlap_kept, Found, GapProof, Overlap};
 use super::shape::{motion_bound, Posed, Remade, Shape};
@@ -313,9 +313,9 @@ struct WallExtra {
 
 /// What the narrow phase hands back for one touching pair.
 struct Touch {
-    key: ContactKey,
-    contact: Contact,
     force: Vec3,
+    /// The contact's point (where the force acts).
+    point: Vec3,
     slip_energy: f64,
     /// The overlap's structure, to keep for the next step: `Found::Kept` is the one the contact
     /// kept, at `at` in the last step's list.
@@ -630,7 +630,7 @@ impl World {
         o: &Overlap,
         va: Vec3,
         friction: f64,
-    ) -> Touch {
+    ) -> (Contact, Touch) {
         let m = &self.material;
         let b = &self.bodies[key.1 as usize];
         let n = o.normal();
@@ -674,14 +674,14 @@ impl World {
             shear,
             sliding,
         };
-        Touch {
-            key,
-            contact,
+        let touch = Touch {
             force: n * fn_ + shear,
+            point,
             slip_energy,
             kept: Found::None,
             at: 0,
-        }
+        };
+        (contact, touch)
     }
 
     /// Advances the world by one time step `dt`.
@@ -725,7 +725,7 @@ impl World {
         self.times.broad += lap();
         // `at`: where this chunk's walk over the contact list is (see `Contacts::seek`).
         // `slot`: the pair's gap proof, kept or made here (a contact leaves none).
-        let narrow = |&(i, j): &(u32, u32), at: &mut usize, slot: &mut Option<Gap>| {
+        let narrow = |&(i, j): &(u32, u32), at: &mut Cursor, slot: &mut Option<Gap>| {
             let (pi, pj) = (&posed[i as usize], &posed[j as usize]);
             if !overlap_boxes(&(pi.lo, pi.hi), &(pj.lo, pj.hi)) {
                 return None;
@@ -741,9 +741,12 @@ impl World {
             );
             // Warm start: the last normal bounds this step's overlap most tightly; a new pair
             // is first tested for a gap, from the direction that proved it last step.
-            let last = self.contacts.seek(at, &key);
+            let last = self
+                .contacts
+                .seek(at, &key)
+                .map(|(c, kept)| (c, kept, at.index()));
             let (o, kept) = match last {
-                Some((c, kept)) => {
+                Some((c, kept, _)) => {
                     let kept = kept.filter(|_| self.keep_structures);
                     overlap_kept(si, pi, sj, pj, &c.normal, kept, true)
                 }
@@ -778,10 +781,10 @@ impl World {
             }?;
             *slot = None;
             let va = bi.velocity_at(&o.centroid);
-            let last = last.map(|(c, _)| c);
-            let mut touch = self.touch(key, last, &o, va, self.material.friction);
-            (touch.kept, touch.at) = (kept, *at);
-            Some(touch)
+            let (last, index) = last.map_or((None, 0), |(c, _, index)| (Some(c), index));
+            let (contact, mut touch) = self.touch(key, last, &o, va, self.material.friction);
+            (touch.kept, touch.at) = (kept, index);
+            Some((key, contact, touch))
         };
         // Each chunk of pairs keeps its own touches, so no thread copies another's results into
         // one list (that copy was 4 % of a step on 2 threads): the touches are then referenced
@@ -789,18 +792,25 @@ impl World {
         let contacts = &self.contacts;
         let chunk = |(pairs, slots): (&[(u32, u32)], &mut [Option<Gap>])| {
             let owner = Buffers::slot(threads);
-            let (mut touches, mut touching) = buffers_ref.take(owner);
+            let (mut touches, mut touching, mut part) = buffers_ref.take(owner);
             // Room for every pair: growing the list by doubling (realloc copies of 200-byte
             // items) was 6 % of a step's instructions on the 2000 I_P bed.
             touches.reserve(pairs.len());
-            let mut at = pairs
-                .first()
-                .map_or(0, |&(i, j)| contacts.lower_bound(&(Partner::Body(i), j)));
+            part.reserve(pairs.len());
+            part.tag = owner;
+            let mut at = (pairs.first()).map_or_else(Cursor::default, |&(i, j)| {
+                contacts.cursor(&(Partner::Body(i), j))
+            });
             // The touching pairs again, compact, for the force rows (read from the touches
             // themselves, a cache line each, often in the other core's cache, they took 2.5x
             // as long on 2 threads as on one).
+            // The energy sums too, while each touch is in this core's cache (summed over the
+            // list afterwards, the touches made by the other core took 2.4x as long to read).
+            let mut sums = Sums::default();
             for (pair, slot) in pairs.iter().zip(slots) {
-                if let Some(t) = narrow(pair, &mut at, slot) {
+                if let Some((key, contact, t)) = narrow(pair, &mut at, slot) {
+                    sums.add(&contact, &t, &self.material);
+                    part.push(key, contact);
                     touches.push(t);
                     touching.push(*pair);
                 }
@@ -808,7 +818,9 @@ impl World {
             Chunk {
                 touches,
                 touching,
+                part,
                 owner,
+                sums,
             }
         };
         const CHUNK: usize = 256;
@@ -845,8 +857,9 @@ impl World {
         // the 2000 I_P bed, 0.44 us a contact on one thread; the poses and bodies they read
         // were in the other core's cache half the time), and on their own they left the
         // other thread idle.
-        let wall_touches = || -> Vec<(Touch, WallExtra)> {
-            (wall_pairs.iter())
+        let wall_touches = || -> (Part, Vec<(Touch, WallExtra)>) {
+            let mut part = buffers_ref.take_part(Buffers::slot(threads));
+            let touches = (wall_pairs.iter())
                 .filter_map(|&(i, w)| {
                     let b = &this.bodies[i as usize];
                     if b.fixed {
@@ -857,7 +870,7 @@ impl World {
                     let hit = wall.touch(shape, &posed[i as usize], shape.radius * b.scale)?;
                     let key = (Partner::Wall(w), i);
                     let last = this.contacts.get(&key);
-                    let mut t = this.touch(
+                    let (mut contact, t) = this.touch(
                         key,
                         last,
                         &hit.overlap,
@@ -874,19 +887,27 @@ impl World {
                     if hit.couple != Vec3::zeros() {
                         // The spots' moment does work as the body turns (the wall does not).
                         extra.couple = hit.couple * this.material.kn;
-                        t.contact.potential -= extra.couple.dot(&b.omega()) * this.dt;
+                        contact.potential -= extra.couple.dot(&b.omega()) * this.dt;
                     }
+                    part.push(key, contact);
                     Some((t, extra))
                 })
-                .collect()
+                .collect();
+            (part, touches)
         };
-        let (chunks, wall_touches) = if par {
+        let (mut chunks, (wall_part, wall_touches)) = if par {
             rayon::join(pair_touches, wall_touches)
         } else {
             (pair_touches(), wall_touches())
         };
         self.broad = broad;
         self.separations = gaps;
+        // The contact list is made of the chunks' parts, as they are.
+        let mut parts: Vec<Part> = (chunks.iter_mut())
+            .map(|c| std::mem::take(&mut c.part))
+            .collect();
+        let wall_keys = wall_part.keys().to_vec();
+        parts.push(wall_part);
         let mut touches: Vec<&Touch> = chunks.iter().flat_map(|c| &c.touches).collect();
         touches.extend(wall_touches.iter().map(|(t, _)| t));
         self.times.narrow += lap();
@@ -925,7 +946,7 @@ impl World {
                 (t, x.couple, e)
             });
             for (t, couple, e) in pairs.chain(walls) {
-                let arm = (t.contact.point - b.pos).cross(&t.force) + couple;
+                let arm = (t.point - b.pos).cross(&t.force) + couple;
                 if e & 1 == 0 {
                     force += t.force;
                     torque += arm;
@@ -974,7 +995,7 @@ impl World {
             // made here, beside the other half's first, serial loop (alone they were 2.9 %
             // of a step of the 2000 I_P bed on 2 threads, the other thread idle).
             let pairs = (chunks.iter().flat_map(|c| &c.touching)).map(|&(a, b)| (b, Some(a)));
-            let walls = wall_touches.iter().map(|(t, _)| (t.key.1, None));
+            let walls = wall_keys.iter().map(|k| (k.1, None));
             let rows = [ends_by_body(pairs, nb), ends_by_body(walls, nb)];
             let rows = &rows;
             let runs: Vec<Vec<Option<[f64; 4]>>> = if par {
@@ -992,26 +1013,26 @@ impl World {
             };
             runs.into_iter().flatten().collect()
         };
-        let mut list_contacts = || {
+        let list_contacts = || {
             for w in walls.iter_mut() {
                 w.clear_forces();
             }
-            let mut elastic = 0.0;
             let mut wall_work = 0.0;
-            let mut contact_force = 0.0;
-            for t in touches {
-                contact_force += t.force.norm();
-                elastic += t.contact.elastic_energy(material);
-                energy.friction += t.slip_energy;
+            // The chunks' sums in chunk order (fixed by the pairs, whatever the threads).
+            let mut sums = Sums::default();
+            for c in chunks.iter() {
+                sums.merge(&c.sums);
             }
-            for (t, x) in &wall_touches {
-                if let Partner::Wall(w) = t.key.0 {
+            let wall_contacts = parts.last().map_or(&[][..], |p| p.values());
+            for (((t, x), c), key) in wall_touches.iter().zip(wall_contacts).zip(&wall_keys) {
+                sums.add(c, t, material);
+                if let Partner::Wall(w) = key.0 {
                     walls[w as usize].push(&-t.force, &x.node_weights);
                     wall_work += x.wall_work;
                 }
             }
             let last_kept = contacts.take_kept();
-            contacts.refill(touches, par, |t| t.key, |t| t.contact.clone());
+            let old_parts = contacts.set_parts(parts);
             // The structures move on with their contacts (body pairs come first in key order).
             if *keep_structures {
                 let carry: Vec<Carry> = chunks
@@ -1026,11 +1047,12 @@ impl World {
                 let spare = std::mem::take(kept_buffer);
                 *kept_buffer = contacts.keep(last_kept, &carry, spare, par);
             }
-            energy.elastic = elastic;
+            energy.elastic = sums.elastic;
+            energy.friction += sums.slip;
             energy.wall_work += wall_work;
-            contact_force / touches.len() as f64
+            (sums.force / touches.len() as f64, old_parts)
         };
-        let (terms, mean_contact_force) = if par {
+        let (terms, (mean_contact_force, old_parts)) = if par {
             rayon::join(move_bodies, list_contacts)
         } else {
             (move_bodies(), list_contacts())
@@ -1055,7 +1077,7 @@ impl World {
         self.time += dt;
         self.step += 1;
         self.posed = posed;
-        buffers.give_back(chunks);
+        buffers.give_back(chunks, old_parts);
         self.buffers = buffers;
         self.times.integration += lap();
     }
@@ -1099,7 +1121,33 @@ fn ends_by_body(
 struct Chunk {
     touches: Vec<Touch>,
     touching: Vec<(u32, u32)>,
+    /// The contacts, for the contact list (taken out before the step's end).
+    part: Part,
     owner: usize,
+    /// The touches' sums: force magnitudes, elastic and slip energies.
+    sums: Sums,
+}
+
+/// Sums over touches, each added in the touches' order ([`Chunk::sums`]).
+#[derive(Clone, Copy, Default)]
+struct Sums {
+    force: f64,
+    elastic: f64,
+    slip: f64,
+}
+
+impl Sums {
+    fn add(&mut self, c: &Contact, t: &Touch, m: &Material) {
+        self.force += t.force.norm();
+        self.elastic += c.elastic_energy(m);
+        self.slip += t.slip_energy;
+    }
+
+    fn merge(&mut self, other: &Sums) {
+        self.force += other.force;
+        self.elastic += other.elastic;
+        self.slip += other.slip;
+    }
 }
 
 /// The narrow phase's chunk buffers, kept between steps, one pool per thread (and one for a
@@ -1109,10 +1157,21 @@ struct Chunk {
 /// as many buffers as it once filled in a step (2000 I_P bed: up to 40 of 63 KB each, about
 /// 2.5 KiB per body at worst). Only speed depends on them: a clone starts empty.
 #[derive(Default)]
-struct Buffers(Vec<std::sync::Mutex<Vec<ChunkBuffers>>>);
+struct Buffers(Vec<std::sync::Mutex<Pool>>);
 
-/// A chunk's two buffers: its touches and its touching pairs.
-type ChunkBuffers = (Vec<Touch>, Vec<(u32, u32)>);
+/// A thread's buffers: touches and touching pairs, and parts of the contact list (those the
+/// list had come back a step later: [`Contacts::set_parts`]).
+#[derive(Default)]
+struct Pool {
+    touches: Vec<TouchBuffers>,
+    parts: Vec<Part>,
+}
+
+/// A chunk's touches and touching pairs.
+type TouchBuffers = (Vec<Touch>, Vec<(u32, u32)>);
+
+/// A chunk's three buffers: its touches, its touching pairs and its part of the contact list.
+type ChunkBuffers = (Vec<Touch>, Vec<(u32, u32)>, Part);
 
 impl Buffers {
     /// This thread's slot: its index in the pool of `threads`, or `threads` outside it.
@@ -1123,18 +1182,36 @@ impl Buffers {
     /// An empty pair of buffers for this thread's next chunk (see [`Buffers::give_back`]).
     fn take(&self, slot: usize) -> ChunkBuffers {
         let mut pool = self.0[slot].lock().unwrap_or_else(|e| e.into_inner());
-        pool.pop().unwrap_or_default()
+        let (touches, touching) = pool.touches.pop().unwrap_or_default();
+        let part = pool.parts.pop().unwrap_or_default();
+        (touches, touching, part)
     }
 
-    /// The chunks' buffers back to the threads that filled them.
-    fn give_back(&mut self, chunks: Vec<Chunk>) {
+    /// An empty part of the contact list for this thread (the walls' contacts).
+    fn take_part(&self, slot: usize) -> Part {
+        let mut pool = self.0[slot].lock().unwrap_or_else(|e| e.into_inner());
+        let mut part = pool.parts.pop().unwrap_or_default();
+        part.tag = slot;
+        part
+    }
+
+    /// The chunks' buffers back to the threads that filled them, and the contact list's
+    /// parts it no longer holds to the threads that filled those.
+    fn give_back(&mut self, chunks: Vec<Chunk>, parts: Vec<Part>) {
+        let last = self.0.len() - 1;
         for mut c in chunks {
             // Emptied here, while the touches are still in cache (emptied when next taken,
             // their drop read them back from memory: the 500 bed took 1.05-1.12x as long).
             c.touches.clear();
             c.touching.clear();
             let pool = self.0[c.owner].get_mut().unwrap_or_else(|e| e.into_inner());
-            pool.push((c.touches, c.touching));
+            pool.touches.push((c.touches, c.touching));
+        }
+        for mut p in parts {
+            p.clear();
+            // A part made on a larger pool (or by hand) goes to the last slot.
+            let pool = self.0[p.tag.min(last)].get_mut();
+            pool.unwrap_or_else(|e| e.into_inner()).parts.push(p);
         }
     }
 }
