@@ -3,6 +3,7 @@
 //! - [`shape`]: convex templates in their principal frame.
 //! - [`gjk`]: a certified separation test for pairs whose boxes overlap.
 //! - [`overlap`]: contact geometry from the overlap polyhedron (normal, depth, point).
+//! - [`spread`]: a step's loops over the pool's threads.
 //! - [`structure`]: the overlap polyhedron by its corners, kept from step to step.
 //! - [`world`]: bodies, walls, the contact law, the integrator and the energy audit.
 //! - [`state`]: scenes and restartable states as JSON lines.
@@ -17,6 +18,7 @@ pub mod overlap;
 pub mod peer;
 pub mod scenes;
 pub mod shape;
+pub mod spread;
 pub mod state;
 pub mod structure;
 pub mod vtk;

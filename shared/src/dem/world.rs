@@ -28,6 +28,7 @@ use super::contacts::{Carry, Contacts, Cursor, Part};
 use super::gjk::Hints;
 use super::overlap::{centre_line, gap_proof, overlap_kept, Found, GapProof, Overlap};
 use super::shape::{motion_bound, Posed, Remade, Shape};
+use super::spread::spread;
 use super::wall::Wall;
 use crate::math::{cube, pow5, Vec3};
 use nalgebra::UnitQuaternion;
@@ -602,17 +603,11 @@ impl World {
                 .fold(0u64, |bits, (w, _)| bits | 1 << w.min(63));
             ((p.lo, p.hi), reach)
         };
-        let mut boxes = Vec::with_capacity(self.bodies.len());
-        let mut reach = Vec::with_capacity(self.bodies.len());
-        if parallel(self.bodies.len()) {
-            (self.bodies.par_iter())
-                .zip(posed.par_iter_mut())
-                .map(pose)
-                .unzip_into_vecs(&mut boxes, &mut reach);
-        } else {
-            (boxes, reach) = self.bodies.iter().zip(posed.iter_mut()).map(pose).unzip();
-        }
-        (boxes, reach)
+        let blocks = (self.bodies.chunks(POSE_BLOCK)).zip(posed.chunks_mut(POSE_BLOCK));
+        let blocks = spread(blocks.collect(), parallel(self.bodies.len()), |(b, p)| {
+            b.iter().zip(p).map(pose).collect::<Vec<_>>()
+        });
+        blocks.into_iter().flatten().unzip()
     }
 
     /// How many times the broad phase has swept all boxes since this world was made or read
@@ -827,10 +822,8 @@ impl World {
         let gaps_out = &mut gaps.0;
         let mut pair_touches = move || -> Vec<Chunk> {
             if par {
-                (pairs.par_chunks(CHUNK))
-                    .zip(gaps_out.par_chunks_mut(CHUNK))
-                    .map(chunk)
-                    .collect()
+                let items = pairs.chunks(CHUNK).zip(gaps_out.chunks_mut(CHUNK));
+                spread(items.collect(), true, chunk)
             } else {
                 (pairs.chunks(CHUNK))
                     .zip(gaps_out.chunks_mut(CHUNK))
@@ -998,19 +991,8 @@ impl World {
             let walls = wall_keys.iter().map(|k| (k.1, None));
             let rows = [ends_by_body(pairs, nb), ends_by_body(walls, nb)];
             let rows = &rows;
-            let runs: Vec<Vec<Option<[f64; 4]>>> = if par {
-                bodies
-                    .par_chunks_mut(MOVE_RUN)
-                    .enumerate()
-                    .map(|run| move_run(run, rows))
-                    .collect()
-            } else {
-                bodies
-                    .chunks_mut(MOVE_RUN)
-                    .enumerate()
-                    .map(|run| move_run(run, rows))
-                    .collect()
-            };
+            let runs = bodies.chunks_mut(MOVE_RUN).enumerate().collect();
+            let runs = spread(runs, par, |run| move_run(run, rows));
             runs.into_iter().flatten().collect()
         };
         let list_contacts = || {
@@ -1372,6 +1354,9 @@ pub fn free_rotations(bodies: &mut [Body], dt: f64) {
         }
     }
 }
+
+/// Bodies posed together (an item of [`spread`]).
+const POSE_BLOCK: usize = 64;
 
 /// Bodies moved together ([`free_rotations`] turns them four at a time).
 const MOVE_RUN: usize = 64;
