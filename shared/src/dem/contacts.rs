@@ -46,10 +46,7 @@ impl Part {
     /// If `key` is not above the part's last key.
     #[inline]
     pub fn push(&mut self, key: ContactKey, contact: Contact) {
-        assert!(
-            self.keys.last() < Some(&key),
-            "contacts must be built in strictly ascending key order"
-        );
+        assert!(self.keys.last() < Some(&key), "{OUT_OF_ORDER}");
         self.keys.push(key);
         self.values.push(contact);
     }
@@ -118,6 +115,9 @@ pub enum Carry<'a> {
     New(&'a [u32]),
 }
 
+/// What a list built out of key order panics with (a step that builds one so is a bug).
+const OUT_OF_ORDER: &str = "contacts must be built in strictly ascending key order";
+
 /// Below this many words the buffer is not compacted.
 const COMPACT_MIN: usize = 1 << 16;
 
@@ -168,10 +168,7 @@ impl Contacts {
         } else {
             (part.keys, part.values) = items.iter().map(pair).unzip();
         }
-        assert!(
-            part.keys.windows(2).all(|w| w[0] < w[1]),
-            "contacts must be built in strictly ascending key order"
-        );
+        assert!(part.keys.windows(2).all(|w| w[0] < w[1]), "{OUT_OF_ORDER}");
         let mut out = Contacts::default();
         out.set_parts(vec![part]);
         out
@@ -189,10 +186,7 @@ impl Contacts {
         let ascending = parts
             .windows(2)
             .all(|w| w[0].keys.last() < w[1].keys.first());
-        assert!(
-            ascending,
-            "contacts must be built in strictly ascending key order"
-        );
+        assert!(ascending, "{OUT_OF_ORDER}");
         let mut old = std::mem::replace(&mut self.parts, parts);
         old.append(&mut empty);
         self.index_parts();
