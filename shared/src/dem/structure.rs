@@ -1065,11 +1065,7 @@ mod tests {
             let Some(pair) = Pair::new(sa, a, sb, b) else {
                 panic!("small shapes have a pair");
             };
-            let Some(s) = discover(
-                &pair,
-                [&all_of(sa), &all_of(sb)],
-                [&faces_of(sa), &faces_of(sb)],
-            ) else {
+            let Some(s) = discover_whole(&pair) else {
                 continue;
             };
             structured += 1;
@@ -1094,12 +1090,10 @@ mod tests {
         );
     }
 
-    fn all_of(s: &Shape) -> Vec<u32> {
-        (0..s.vertices.len() as u32).collect()
-    }
-
-    fn faces_of(s: &Shape) -> Vec<u32> {
-        (0..s.face_count() as u32).collect()
+    /// [`discover`] with every vertex and face of both bodies.
+    fn discover_whole(pair: &Pair) -> Option<Structure> {
+        let [sa, sb] = pair.shapes;
+        discover(pair, [&all(sa), &all(sb)], [&faces(sa), &faces(sb)])
     }
 
     #[test]
@@ -1164,7 +1158,7 @@ mod tests {
             let Some(pair) = Pair::new(sa, &a, sb, &b) else {
                 continue;
             };
-            let Some(s) = discover(&pair, [&all(sa), &all(sb)], [&faces(sa), &faces(sb)]) else {
+            let Some(s) = discover_whole(&pair) else {
                 continue;
             };
             for c in corners_of(&s) {
@@ -1355,7 +1349,7 @@ mod tests {
             let Some(pair) = Pair::new(sa, &a, sb, &b) else {
                 continue;
             };
-            let Some(s) = discover(&pair, [&all(sa), &all(sb)], [&faces(sa), &faces(sb)]) else {
+            let Some(s) = discover_whole(&pair) else {
                 continue;
             };
             let large_edge = |c: &Corner| matches!(c, Corner::Edge { side, .. } if pair.large[1 - *side as usize]);

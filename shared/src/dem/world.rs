@@ -736,12 +736,9 @@ impl World {
             );
             // Warm start: the last normal bounds this step's overlap most tightly; a new pair
             // is first tested for a gap, from the direction that proved it last step.
-            let last = self
-                .contacts
-                .seek(at, &key)
-                .map(|(c, kept)| (c, kept, at.index()));
+            let last = self.contacts.seek(at, &key);
             let (o, kept) = match last {
-                Some((c, kept, _)) => {
+                Some((c, kept)) => {
                     let kept = kept.filter(|_| self.keep_structures);
                     overlap_kept(si, pi, sj, pj, &c.normal, kept, true)
                 }
@@ -776,9 +773,10 @@ impl World {
             }?;
             *slot = None;
             let va = bi.velocity_at(&o.centroid);
-            let (last, index) = last.map_or((None, 0), |(c, _, index)| (Some(c), index));
+            let last = last.map(|(c, _)| c);
             let (contact, mut touch) = self.touch(key, last, &o, va, self.material.friction);
-            (touch.kept, touch.at) = (kept, index);
+            // `at` is still where the seek left it: the contact's place, when it had one.
+            (touch.kept, touch.at) = (kept, at.index());
             Some((key, contact, touch))
         };
         // Each chunk of pairs keeps its own touches, so no thread copies another's results into
