@@ -326,10 +326,27 @@ const PEER_SCENE: &str = "# peer-scene v1\nbox 0.2 0.2 0.2\n\
     1 4 0.02 0.15 0.05 0.05 4 0.02 0 0 0 0.02 0 0 0 0.02 -0.01 -0.01 -0.01\n\
     2 4 0.03 0.05 0.15 0.05 4 0.03 0 0 0 0.03 0 0 0 0.03 -0.015 -0.015 -0.015\n";
 
-fn temp_file(name: &str, text: &[u8]) -> std::path::PathBuf {
+/// A file in the temporary directory that is removed when the test lets go of it, passed or
+/// failed, so test runs leave nothing behind.
+struct TempFile(std::path::PathBuf);
+
+impl std::ops::Deref for TempFile {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+fn temp_file(name: &str, text: &[u8]) -> TempFile {
     let path = std::env::temp_dir().join(format!("dem-{}-{name}", std::process::id()));
     std::fs::write(&path, text).unwrap();
-    path
+    TempFile(path)
 }
 
 #[test]
