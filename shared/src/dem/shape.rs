@@ -646,7 +646,7 @@ impl Posed {
 /// the centroid's displacement plus the chord of the rotation between, `2 r sin(theta / 2)`,
 /// which is `2 r` times the length of the vector part of `to.1 from.1^-1`; both lengths taken as
 /// the sums of their components' magnitudes (at most sqrt 3 times more, and no square roots on
-/// the per-pair paths that use it).
+/// the gap proofs' per-pair path, where a looser bound costs little: [`motion_bound_tight`]).
 pub fn motion_bound(
     from: (&Vec3, &UnitQuaternion<f64>),
     to: (&Vec3, &UnitQuaternion<f64>),
@@ -654,6 +654,19 @@ pub fn motion_bound(
 ) -> f64 {
     let turn = to.1 * from.1.inverse();
     (to.0 - from.0).lp_norm(1) + 2.0 * radius * turn.imag().lp_norm(1)
+}
+
+/// [`motion_bound`] with the lengths themselves (Euclidean): the bound the kept structures'
+/// corner budgets are spent against. There every bit of slack shortens how long a budget
+/// lasts on a creeping bed, and two square roots a pair are far cheaper than the corner
+/// checks a looser bound brings forward.
+pub fn motion_bound_tight(
+    from: (&Vec3, &UnitQuaternion<f64>),
+    to: (&Vec3, &UnitQuaternion<f64>),
+    radius: f64,
+) -> f64 {
+    let turn = to.1 * from.1.inverse();
+    (to.0 - from.0).norm() + 2.0 * radius * turn.imag().norm()
 }
 
 /// How far a large hull's box, found by climbing, is padded out: a fraction of its radius, far

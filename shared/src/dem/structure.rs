@@ -34,7 +34,7 @@
 //! construction of [`super::overlap`] handles them, every step.
 
 use super::overlap::{set_bits, Acc, Overlap};
-use super::shape::{motion_bound, Posed, Shape, CLIMB_MIN};
+use super::shape::{motion_bound_tight, Posed, Shape, CLIMB_MIN};
 use crate::math::Vec3;
 use nalgebra::UnitQuaternion;
 
@@ -215,7 +215,7 @@ impl<'a> Pair<'a> {
         }) - slack
     }
 
-    /// The sum of the two bodies' [`motion_bound`]s since `found_at` (for any point within
+    /// The sum of the two bodies' [`motion_bound_tight`]s since `found_at` (for any point within
     /// their bounding spheres); infinite when a scale changed.
     fn moved_since(&self, found_at: &[(Vec3, UnitQuaternion<f64>, f64); 2]) -> f64 {
         (0..2)
@@ -225,7 +225,7 @@ impl<'a> Pair<'a> {
                     return f64::INFINITY;
                 }
                 let radius = self.shapes[k].radius * p.scale;
-                motion_bound((pos, rot), (&p.pos, &p.orientation), radius)
+                motion_bound_tight((pos, rot), (&p.pos, &p.orientation), radius)
             })
             .sum()
     }
@@ -295,7 +295,7 @@ impl<'a> Pair<'a> {
         }
     }
 
-    /// How far the two bodies may move (the sum of their [`motion_bound`]s) from these poses
+    /// How far the two bodies may move (the sum of their [`motion_bound_tight`]s) from these poses
     /// before corner `c` (checked here by [`Pair::corner`]) may fail its checks: 0 when it is
     /// checked every step anyway (against a large body: a vertex inside one has its own
     /// budgets, see [`NEAR_REL`]). On the 2000 I_P bed at rest 95 % of vertex corners and 85 %
@@ -1201,7 +1201,7 @@ mod tests {
     }
 
     /// B shifted along `d` and turned about a random axis by nine tenths of `budget`, `share`
-    /// of it by the shift (the bound counts `|shift|_1 + 2 r |sin(angle / 2) axis|_1`): the
+    /// of it by the shift (the bound counts `|shift| + 2 r |sin(angle / 2) axis|`): the
     /// motion bound is within the budget and corner `c` is still a corner.
     fn moved_within_budget(
         rng: &mut impl RngCore,
@@ -1211,9 +1211,9 @@ mod tests {
         budget: f64,
         (d, share): (Vec3, f64),
     ) {
-        let shift = d * (0.9 * budget * share / d.lp_norm(1));
+        let shift = d * (0.9 * budget * share / d.norm());
         let axis = direction(rng);
-        let sine = 0.9 * budget * (1.0 - share) / (2.0 * sb.radius * axis.lp_norm(1));
+        let sine = 0.9 * budget * (1.0 - share) / (2.0 * sb.radius * axis.norm());
         let turn = UnitQuaternion::new(axis * (2.0 * sine.min(1.0).asin()));
         let moved = sb.posed(&(b.pos + shift), &(turn * b.orientation), 1.0);
         let found = [

@@ -1433,6 +1433,7 @@ fn half_angle_sin_cos(x: f64) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dem::shape::motion_bound_tight;
     use crate::mesh::{cube, cuboid};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -1710,7 +1711,7 @@ mod tests {
         let mut w = World::new(Material::default(), Vec3::zeros());
         let s = w.add_shape(shape);
         let i = w.add_body(s, 1.5, Vec3::new(0.1, -0.2, 0.3), random_rotation(&mut rng));
-        let mut tightest = f64::INFINITY;
+        let (mut tightest, mut tightest_tight) = (f64::INFINITY, f64::INFINITY);
         for trial in 0..2000 {
             let before = w.bodies[i].clone();
             let placed = Placed::of(&before);
@@ -1730,15 +1731,21 @@ mod tests {
                     (at(b) - at(&before)).norm()
                 })
                 .fold(0.0, f64::max);
+            let tight = motion_bound_tight((&before.pos, &before.rot), (&b.pos, &b.rot), radius);
             assert!(
-                farthest <= bound * (1.0 + 1e-12),
-                "trial {trial}: {farthest} > {bound}"
+                farthest <= tight * (1.0 + 1e-12) && tight <= bound * (1.0 + 1e-12),
+                "trial {trial}: {farthest} > {tight} (tight) or {tight} > {bound}"
             );
             tightest = tightest.min(bound / farthest);
+            tightest_tight = tightest_tight.min(tight / farthest);
         }
-        // A bound, not a loose guess: the centroid's shift and the chord of the largest radius,
-        // each at most sqrt 3 times its length.
+        // Bounds, not loose guesses: the centroid's shift and the chord of the largest radius,
+        // each at most sqrt 3 times its length, or the lengths themselves.
         assert!(tightest < 2.5, "the bound is never tight: {tightest}");
+        assert!(
+            tightest_tight < 1.5,
+            "the tight bound is never tight: {tightest_tight}"
+        );
         let mut b = w.bodies[i].clone();
         let placed = Placed::of(&b);
         b.scale *= 1.0 + 1e-9;
