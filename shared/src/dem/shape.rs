@@ -629,7 +629,7 @@ impl Posed {
 
     /// World normal and offset of face `f` of `s` (the shape this is a pose of): the posed
     /// plane, or the same numbers computed now when the planes were left out.
-    #[inline]
+    #[inline(always)]
     pub fn plane(&self, s: &Shape, f: usize) -> (Vec3, f64) {
         match (self.normals.get(f), self.offsets.get(f)) {
             (Some(n), Some(d)) => (*n, *d),
