@@ -763,7 +763,7 @@ fn f32_at_most(x: f64) -> f32 {
 }
 
 /// The two words of `x`.
-fn split(x: f64) -> [u32; 2] {
+pub(super) fn split(x: f64) -> [u32; 2] {
     let bits = x.to_bits();
     [bits as u32, (bits >> 32) as u32]
 }
@@ -842,7 +842,7 @@ thread_local! {
 }
 
 /// The number that [`split`] gave the words `w[0]`, `w[1]` of.
-fn join(w: &[u32]) -> f64 {
+pub(super) fn join(w: &[u32]) -> f64 {
     f64::from_bits(u64::from(w[0]) | u64::from(w[1]) << 32)
 }
 

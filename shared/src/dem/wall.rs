@@ -28,7 +28,8 @@
 //! centroid, so that it makes no moment about the axis.
 
 use super::overlap::{
-    overlap_half_space, overlap_half_space_within, overlap_parts, reach_along, Beyond, Overlap,
+    overlap_half_space_kept, overlap_half_space_within, overlap_parts, reach_along, Beyond,
+    Overlap, WallFound,
 };
 use super::shape::{Posed, Shape};
 use crate::math::{basis, box_excess, Vec3};
@@ -186,15 +187,29 @@ impl Wall {
 
     /// The contact of body `b` (shape `s`, bounding radius `radius`) with this wall.
     pub fn touch(&self, s: &Shape, b: &Posed, radius: f64) -> Option<WallHit> {
-        match &self.kind {
+        self.touch_kept(s, b, radius, None).map(|(hit, _)| hit)
+    }
+
+    /// [`Wall::touch`], to the bit, trying the wall set `kept` the contact made last step (a
+    /// plane's contact with a large hull: [`overlap_half_space_kept`]) and handing back the
+    /// set to keep.
+    pub fn touch_kept(
+        &self,
+        s: &Shape,
+        b: &Posed,
+        radius: f64,
+        kept: Option<&[u32]>,
+    ) -> Option<(WallHit, WallFound)> {
+        let hit = match &self.kind {
             WallKind::Plane { normal, offset } => {
-                let o = overlap_half_space(s, b, normal, *offset)?;
-                Some(WallHit {
-                    overlap: o,
+                let (o, found) = overlap_half_space_kept(s, b, normal, *offset, radius, kept);
+                let hit = WallHit {
+                    overlap: o?,
                     velocity: self.velocity,
                     node_weights: Vec::new(),
                     couple: Vec3::zeros(),
-                })
+                };
+                return Some((hit, found));
             }
             WallKind::Facets {
                 nodes,
@@ -411,7 +426,8 @@ impl Wall {
                     couple,
                 })
             }
-        }
+        };
+        hit.map(|h| (h, WallFound::None))
     }
 
     /// Moves the wall by its velocities over `dt`.

@@ -26,7 +26,7 @@
 use super::broad::{overlap as overlap_boxes, Aabb, Broad};
 use super::contacts::{Carry, Contacts, Cursor, Part};
 use super::gjk::Hints;
-use super::overlap::{centre_line, gap_proof, overlap_kept, Found, GapProof, Overlap};
+use super::overlap::{centre_line, gap_proof, overlap_kept, Found, GapProof, Overlap, WallFound};
 use super::shape::{motion_bound, Posed, Remade, Shape};
 use super::spread::spread;
 use super::wall::Wall;
@@ -310,6 +310,10 @@ struct WallExtra {
     /// this step's force over the surface's displacement (as the contact's stored work counts
     /// it).
     wall_work: f64,
+    /// The wall set to keep ([`super::overlap::overlap_half_space_kept`]), and the contact's
+    /// place in the last list (where a kept set is).
+    found: WallFound,
+    at: usize,
 }
 
 /// What the narrow phase hands back for one touching pair.
@@ -850,6 +854,10 @@ impl World {
         // other thread idle.
         let wall_touches = || -> (Part, Vec<(Touch, WallExtra)>) {
             let mut part = buffers_ref.take_part(Buffers::slot(threads));
+            // The keys ascend, so one cursor walks the last list's wall contacts.
+            let mut at = (wall_pairs.first()).map_or_else(Cursor::default, |&(i, w)| {
+                this.contacts.cursor(&(Partner::Wall(w), i))
+            });
             let touches = (wall_pairs.iter())
                 .filter_map(|&(i, w)| {
                     let b = &this.bodies[i as usize];
@@ -858,9 +866,14 @@ impl World {
                     }
                     let wall = &this.walls[w as usize];
                     let shape = &this.shapes[b.shape as usize];
-                    let hit = wall.touch(shape, &posed[i as usize], shape.radius * b.scale)?;
                     let key = (Partner::Wall(w), i);
-                    let last = this.contacts.get(&key);
+                    let (last, kept) = match this.contacts.seek(&mut at, &key) {
+                        Some((c, kept)) => (Some(c), kept.filter(|_| this.keep_structures)),
+                        None => (None, None),
+                    };
+                    let kept = kept.map(|k| k.words());
+                    let radius = shape.radius * b.scale;
+                    let (hit, found) = wall.touch_kept(shape, &posed[i as usize], radius, kept)?;
                     let (mut contact, t) = this.touch(
                         key,
                         last,
@@ -874,6 +887,8 @@ impl World {
                         node_weights: hit.node_weights,
                         couple: Vec3::zeros(),
                         wall_work: 0.5 * (last_force + t.force).dot(&hit.velocity) * this.dt,
+                        found,
+                        at: at.index(),
                     };
                     if hit.couple != Vec3::zeros() {
                         // The spots' moment does work as the body turns (the wall does not).
@@ -1015,15 +1030,18 @@ impl World {
             let old_parts = contacts.set_parts(parts);
             // The structures move on with their contacts (body pairs come first in key order).
             if *keep_structures {
-                let carry: Vec<Carry> = chunks
-                    .iter()
-                    .flat_map(|c| &c.touches)
-                    .map(|t| match &t.kept {
-                        Found::Kept => Carry::Kept(t.at),
-                        Found::New(s) => Carry::New(s.packed().words()),
-                        Found::None => Carry::None,
-                    })
-                    .collect();
+                let pairs = (chunks.iter().flat_map(|c| &c.touches)).map(|t| match &t.kept {
+                    Found::Kept => Carry::Kept(t.at),
+                    Found::New(s) => Carry::New(s.packed().words()),
+                    Found::None => Carry::None,
+                });
+                // Then the walls' sets (their contacts come last in key order).
+                let walls = wall_touches.iter().map(|(_, x)| match &x.found {
+                    WallFound::Kept => Carry::Kept(x.at),
+                    WallFound::New(w) => Carry::New(w),
+                    WallFound::None => Carry::None,
+                });
+                let carry: Vec<Carry> = pairs.chain(walls).collect();
                 let spare = std::mem::take(kept_buffer);
                 *kept_buffer = contacts.keep(last_kept, &carry, spare, par);
             }
