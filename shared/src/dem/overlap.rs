@@ -21,9 +21,10 @@
 
 use super::gjk::{separating_gap, Hints, Points};
 use super::shape::{motion_bound_tight, Posed, Shape};
-use super::structure::{discover, join, split, Packed, Pair, Structure};
+use super::structure::{
+    discover, join, pose_of, pose_words, split, Packed, Pair, Structure, POSE_WORDS,
+};
 use crate::math::{bounding_box, box_excess, clip, clip_with, Vec3};
-use nalgebra::UnitQuaternion;
 
 /// The overlap of two bodies: volume, centroid, and `S_B` (area vector of B's surface inside A,
 /// outward from B). `normal()` points from A to B.
@@ -191,22 +192,6 @@ impl Side {
             self.top = at;
             return best;
         };
-        self.begin(s);
-        let (heights, points, stamps, stamp) = (
-            &mut self.heights,
-            &mut self.points,
-            &mut self.height_stamps,
-            self.stamp,
-        );
-        let height = |i: usize| lazy_height((heights, points), stamps, stamp, (s, p), n, sign, i);
-        // Steepest ascent: on a convex polytope a vertex with no higher neighbour is a top.
-        let (at, best) = c.ascend(c.start(&p.rot, &(n * sign)), height);
-        self.top = at;
-        best
-    }
-
-    /// A new stamp for a large shape `s`: no height is known yet (lists sized for `s`).
-    fn begin(&mut self, s: &Shape) {
         if self.stamp == u32::MAX {
             self.height_stamps.fill(0);
             self.seen_stamps.fill(0);
@@ -224,6 +209,17 @@ impl Side {
         if self.points.len() < count {
             self.points.resize(count, Vec3::zeros());
         }
+        let (heights, points, stamps, stamp) = (
+            &mut self.heights,
+            &mut self.points,
+            &mut self.height_stamps,
+            self.stamp,
+        );
+        let height = |i: usize| lazy_height((heights, points), stamps, stamp, (s, p), n, sign, i);
+        // Steepest ascent: on a convex polytope a vertex with no higher neighbour is a top.
+        let (at, best) = c.ascend(c.start(&p.rot, &(n * sign)), height);
+        self.top = at;
+        best
     }
 
     /// The vertices of height at least `floor` (after [`Side::climb_to_top`]), into `reach`:
@@ -859,11 +855,11 @@ pub enum WallFound {
     None,
 }
 
-/// Words of a wall set before its lists: 13 numbers of 2 words (where the body was: centroid,
-/// orientation, scale; the plane's normal and offset; the band), then the counts of faces and
+/// Words of a wall set before its lists: where the body was ([`pose_words`]), the plane's
+/// normal and offset and the band (5 numbers of 2 words), then the counts of faces and
 /// vertices. Then the faces (ascending), the vertices of those faces (ascending), and each
 /// face's corners as places in the vertex list, 16 bits each, two to a word.
-const WALL_SET_HEAD: usize = 28;
+const WALL_SET_HEAD: usize = POSE_WORDS + 10 + 2;
 
 /// [`overlap_half_space`] of a large hull `sb` (posed `b`, bounding radius `radius`), to the
 /// bit, with a **wall set** kept from one step to the next: the faces around the vertices
@@ -985,12 +981,8 @@ fn wall_set(sb: &Shape, b: &Posed, n: &Vec3, d: f64, band: f64) -> Option<Vec<u3
             .collect();
         vertices.sort_unstable();
         vertices.dedup();
-        let q = b.orientation.quaternion().coords;
-        let head = [b.pos.x, b.pos.y, b.pos.z, q.x, q.y, q.z, q.w, b.scale];
-        let mut words: Vec<u32> = (head.into_iter())
-            .chain([n.x, n.y, n.z, d, band])
-            .flat_map(split)
-            .collect();
+        let mut words: Vec<u32> = pose_words(&b.pos, &b.orientation, b.scale).collect();
+        words.extend([n.x, n.y, n.z, d, band].into_iter().flat_map(split));
         words.extend([faces_b.len() as u32, vertices.len() as u32]);
         words.extend_from_slice(faces_b);
         words.extend_from_slice(&vertices);
@@ -1006,23 +998,23 @@ fn wall_set(sb: &Shape, b: &Posed, n: &Vec3, d: f64, band: f64) -> Option<Vec<u3
         Some(words)
     })
 }
+
 /// True when the wall set `w` still holds for the body posed `b` (bounding radius `radius`)
 /// against the plane `n . x = d`: the same scale and normal, and the body's motion since
 /// ([`motion_bound_tight`]) plus the plane's less than the band (by a thousandth of it, far
 /// above the round-off of the heights).
 fn wall_set_holds(w: &[u32], b: &Posed, n: &Vec3, d: f64, radius: f64) -> bool {
-    let x = |k: usize| join(&w[2 * k..]);
-    if w.len() < WALL_SET_HEAD || x(7) != b.scale || Vec3::new(x(8), x(9), x(10)) != *n {
+    if w.len() < WALL_SET_HEAD {
         return false;
     }
-    let q = nalgebra::Quaternion::new(x(6), x(3), x(4), x(5));
-    let was = (
-        Vec3::new(x(0), x(1), x(2)),
-        UnitQuaternion::new_unchecked(q),
-    );
-    let moved = motion_bound_tight((&was.0, &was.1), (&b.pos, &b.orientation), radius);
-    let band = x(12);
-    moved + (d - x(11)).abs() < 0.999 * band
+    let (pos, rot, scale) = pose_of(w);
+    let x = |k: usize| join(&w[POSE_WORDS + 2 * k..]);
+    if scale != b.scale || Vec3::new(x(0), x(1), x(2)) != *n {
+        return false;
+    }
+    let moved = motion_bound_tight((&pos, &rot), (&b.pos, &b.orientation), radius);
+    let band = x(4);
+    moved + (d - x(3)).abs() < 0.999 * band
 }
 
 #[cfg(test)]

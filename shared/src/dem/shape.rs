@@ -652,8 +652,8 @@ pub fn motion_bound(
     to: (&Vec3, &UnitQuaternion<f64>),
     radius: f64,
 ) -> f64 {
-    let turn = to.1 * from.1.inverse();
-    (to.0 - from.0).lp_norm(1) + 2.0 * radius * turn.imag().lp_norm(1)
+    let (shift, turn) = motion(from, to);
+    shift.lp_norm(1) + 2.0 * radius * turn.lp_norm(1)
 }
 
 /// [`motion_bound`] with the lengths themselves (Euclidean): the bound the kept structures'
@@ -665,8 +665,16 @@ pub fn motion_bound_tight(
     to: (&Vec3, &UnitQuaternion<f64>),
     radius: f64,
 ) -> f64 {
+    let (shift, turn) = motion(from, to);
+    shift.norm() + 2.0 * radius * turn.norm()
+}
+
+/// The centroid's displacement from `from` to `to`, and the vector part of the rotation
+/// between (`sin(theta / 2)` times its axis): what the motion bounds measure.
+#[inline(always)]
+fn motion(from: (&Vec3, &UnitQuaternion<f64>), to: (&Vec3, &UnitQuaternion<f64>)) -> (Vec3, Vec3) {
     let turn = to.1 * from.1.inverse();
-    (to.0 - from.0).norm() + 2.0 * radius * turn.imag().norm()
+    (to.0 - from.0, turn.imag())
 }
 
 /// How far a large hull's box, found by climbing, is padded out: a fraction of its radius, far

@@ -101,8 +101,8 @@ pub struct Packed<'a> {
 /// follow (1 or 0).
 const HEADER: usize = 4 + 2 + 1;
 
-/// Words of `found_at`: 2 x 8 numbers of 2 words.
-const FOUND_AT: usize = 32;
+/// Words of `found_at`: 2 poses ([`pose_words`]).
+const FOUND_AT: usize = 2 * POSE_WORDS;
 
 /// The parts of a structure, as [`discover`] makes them.
 #[derive(Default)]
@@ -768,6 +768,33 @@ pub(super) fn split(x: f64) -> [u32; 2] {
     [bits as u32, (bits >> 32) as u32]
 }
 
+/// Words of a [`pose_words`] pose: 8 numbers of 2 words.
+pub(super) const POSE_WORDS: usize = 16;
+
+/// Where a body is (centroid, orientation, scale), as [`POSE_WORDS`] words (a kept structure's
+/// `found_at`, a wall set's pose), read back by [`pose_of`].
+pub(super) fn pose_words(
+    pos: &Vec3,
+    rot: &UnitQuaternion<f64>,
+    scale: f64,
+) -> impl Iterator<Item = u32> {
+    let q = rot.quaternion().coords;
+    [pos.x, pos.y, pos.z, q.x, q.y, q.z, q.w, scale]
+        .into_iter()
+        .flat_map(split)
+}
+
+/// The pose of the words [`pose_words`] gave.
+pub(super) fn pose_of(w: &[u32]) -> (Vec3, UnitQuaternion<f64>, f64) {
+    let x = |k: usize| join(&w[2 * k..]);
+    let q = nalgebra::Quaternion::new(x(6), x(3), x(4), x(5));
+    (
+        Vec3::new(x(0), x(1), x(2)),
+        UnitQuaternion::new_unchecked(q),
+        x(7),
+    )
+}
+
 impl Structure {
     fn pack(p: &Parts) -> Structure {
         let budgets = p.budgets.iter().any(|&b| b > 0.0);
@@ -795,10 +822,7 @@ impl Structure {
         w.extend(split(p.clearance));
         w.push(u32::from(found_at > 0));
         for (pos, rot, scale) in p.found_at.iter().filter(|_| found_at > 0) {
-            let q = rot.quaternion().coords;
-            for x in [pos.x, pos.y, pos.z, q.x, q.y, q.z, q.w, *scale] {
-                w.extend(split(x));
-            }
+            w.extend(pose_words(pos, rot, *scale));
         }
         if found_at > 0 {
             let budget = |k: usize| p.budgets.get(k).copied().unwrap_or(0.0);
@@ -909,13 +933,7 @@ impl<'a> Packed<'a> {
         // have moved less than their clearance allows.
         let mut moved = f64::INFINITY;
         if !s.found_at.is_empty() {
-            let body = |w: &[u32]| {
-                let x = |k: usize| join(&w[2 * k..]);
-                let q = nalgebra::Quaternion::new(x(6), x(3), x(4), x(5));
-                let q = UnitQuaternion::new_unchecked(q);
-                (Vec3::new(x(0), x(1), x(2)), q, x(7))
-            };
-            let found_at = [body(&s.found_at[..16]), body(&s.found_at[16..])];
+            let found_at = [pose_of(s.found_at), pose_of(&s.found_at[POSE_WORDS..])];
             moved = pair.moved_since(&found_at);
             if s.clearance.is_finite() && moved >= s.clearance - pair.margin {
                 return None;
