@@ -90,8 +90,12 @@ pub struct Structure {
 /// A [`Structure`]'s words, read in place: a header of [`HEADER`] words (the counts of
 /// corners, near planes, pieces and ring entries; the clearance; whether it has budgets),
 /// where the bodies were when it was found ([`FOUND_AT`] words) and one budget per corner
-/// (an `f32`), both only when some corner has a budget or the clearance is finite, then 4
-/// words per corner, 3 per near plane, 3 per piece and 1 per ring entry.
+/// (an `f32`), both only when some corner has a budget or the clearance is finite, then 2
+/// words per corner, 2 per piece, the ring entries two to a word (16 bits each) and last 2
+/// words per near plane, which a step reads only the first few of (see [`Packed::evaluate`]).
+/// Vertex and face indices take 16 bits ([`INDEX_LIMIT`]). On the 5000 Ab_3 bed a structure
+/// had 581 words when it took 4 per corner, 3 per piece and near plane and 1 per ring entry,
+/// with the near planes before the pieces; now about 375, and 230 before the near planes.
 #[derive(Clone, Copy, Debug)]
 pub struct Packed<'a> {
     words: &'a [u32],
@@ -100,6 +104,10 @@ pub struct Packed<'a> {
 /// Words of the header: 4 counts, the clearance (2) and whether `found_at` and the budgets
 /// follow (1 or 0).
 const HEADER: usize = 4 + 2 + 1;
+
+/// Shapes with this many vertices or faces or more have no structures (their indices would
+/// not fit the 16 bits a structure gives them): their overlaps are clipped every step.
+pub const INDEX_LIMIT: usize = 1 << 16;
 
 /// Words of `found_at`: 2 poses ([`pose_words`]).
 const FOUND_AT: usize = 2 * POSE_WORDS;
@@ -521,6 +529,10 @@ fn shared_planes(a: &[(u8, u32)], b: &[(u8, u32)], own: (u8, u32)) -> usize {
 /// `reach`: each body's vertices that can lie in the overlap; `faces`: each body's faces that can
 /// bound it (for both, all of them will do; [`super::overlap`] passes those meeting its slab).
 pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<Structure> {
+    let fits = |s: &Shape| s.vertices.len() < INDEX_LIMIT && s.face_count() < INDEX_LIMIT;
+    if !pair.shapes.iter().all(|s| fits(s)) {
+        return None;
+    }
     FINDING.with_borrow_mut(|f| discover_with(pair, reach, faces, f))
 }
 
@@ -807,10 +819,10 @@ impl Structure {
         let len = HEADER
             + found_at
             + with_budgets
-            + 4 * p.corners.len()
-            + 3 * p.near.len()
-            + 3 * p.pieces.len()
-            + p.rings.len();
+            + 2 * p.corners.len()
+            + 2 * p.pieces.len()
+            + p.rings.len().div_ceil(2)
+            + 2 * p.near.len();
         let mut w = Vec::with_capacity(len);
         let count = |n: usize| n as u32;
         w.extend([
@@ -828,19 +840,25 @@ impl Structure {
             let budget = |k: usize| p.budgets.get(k).copied().unwrap_or(0.0);
             w.extend((0..p.corners.len()).map(|k| budget(k).to_bits()));
         }
+        // The indices are below INDEX_LIMIT (`discover`).
         for c in &p.corners {
             w.extend(match *c {
-                Corner::Vertex { side, i } => [u32::from(side), i, 0, 0],
-                Corner::Edge { side, i, j, face } => [u32::from(side) | 2, i, j, face],
+                Corner::Vertex { side, i } => [u32::from(side) << 16 | i, 0],
+                Corner::Edge { side, i, j, face } => {
+                    [(u32::from(side) | 2) << 16 | i, j << 16 | face]
+                }
             });
         }
-        w.extend((p.near.iter()).flat_map(|&(k, f, c)| [u32::from(k), f, c.to_bits()]));
         w.extend(
             p.pieces
                 .iter()
-                .flat_map(|&(side, face, end)| [u32::from(side), face, end]),
+                .flat_map(|&(side, face, end)| [u32::from(side) << 16 | face, end]),
         );
-        w.extend(p.rings.iter().map(|&k| u32::from(k)));
+        w.extend(
+            (p.rings.chunks(2))
+                .map(|k| u32::from(k[0]) | u32::from(k.get(1).copied().unwrap_or(0)) << 16),
+        );
+        w.extend((p.near.iter()).flat_map(|&(k, f, c)| [u32::from(k) << 16 | f, c.to_bits()]));
         debug_assert_eq!(w.len(), len);
         Structure { words: w }
     }
@@ -870,20 +888,27 @@ pub(super) fn join(w: &[u32]) -> f64 {
     f64::from_bits(u64::from(w[0]) | u64::from(w[1]) << 32)
 }
 
-/// A corner from its 4 words.
+/// A corner from its 2 words.
+#[inline(always)]
 fn corner_of(c: &[u32]) -> Corner {
-    match c[0] {
-        side @ 0..=1 => Corner::Vertex {
-            side: side as u8,
-            i: c[1],
-        },
-        tagged => Corner::Edge {
-            side: (tagged & 1) as u8,
-            i: c[1],
-            j: c[2],
-            face: c[3],
-        },
+    let (tag, i) = (c[0] >> 16, c[0] & 0xffff);
+    let side = (tag & 1) as u8;
+    if tag < 2 {
+        Corner::Vertex { side, i }
+    } else {
+        Corner::Edge {
+            side,
+            i,
+            j: c[1] >> 16,
+            face: c[1] & 0xffff,
+        }
     }
+}
+
+/// Entry `k` of the rings' words (two 16-bit entries to a word).
+#[inline(always)]
+fn ring_entry(rings: &[u32], k: usize) -> usize {
+    (rings[k / 2] >> (16 * (k % 2)) & 0xffff) as usize
 }
 
 /// A packed structure's sections, split once (see [`Packed`] for the layout).
@@ -910,10 +935,10 @@ impl<'a> Packed<'a> {
         let with = w[6] == 1;
         let (found_at, rest) = w[HEADER..].split_at(if with { FOUND_AT } else { 0 });
         let (budgets, rest) = rest.split_at(if with { count(0) } else { 0 });
-        let (corners, rest) = rest.split_at(4 * count(0));
-        let (near, rest) = rest.split_at(3 * count(1));
-        let (pieces, rings) = rest.split_at(3 * count(2));
-        debug_assert_eq!(rings.len(), count(3));
+        let (corners, rest) = rest.split_at(2 * count(0));
+        let (pieces, rest) = rest.split_at(2 * count(2));
+        let (rings, near) = rest.split_at(count(3).div_ceil(2));
+        debug_assert_eq!(near.len(), 2 * count(1));
         Sections {
             clearance,
             found_at,
@@ -947,28 +972,28 @@ impl<'a> Packed<'a> {
                     .get(k)
                     .map_or(0.0, |&b| f64::from(f32::from_bits(b)))
             };
-            for (k, c) in s.corners.chunks_exact(4).enumerate() {
+            for (k, c) in s.corners.chunks_exact(2).enumerate() {
                 at.push(pair.corner_checked(corner_of(c), moved >= budget(k))?);
             }
             // A near plane the vertex was farther inside than the margin plus the motion since
             // is still behind it: the list is by clearance, least first, so the rest are too.
-            for n in s.near.chunks_exact(3) {
-                if moved + pair.margin < f64::from(f32::from_bits(n[2])) {
+            for n in s.near.chunks_exact(2) {
+                if moved + pair.margin < f64::from(f32::from_bits(n[1])) {
                     break;
                 }
                 // Near planes are listed for vertex corners only; the side is the corner's.
-                let (k, f) = (n[0] as usize, n[1]);
-                let side = (s.corners[4 * k] & 1) as u8;
+                let (k, f) = ((n[0] >> 16) as usize, n[0] & 0xffff);
+                let side = (s.corners[2 * k] >> 16 & 1) as u8;
                 if !pair.vertex_inside(1 - side, f, &at[k]) {
                     return None;
                 }
             }
             let mut acc = Acc::default();
             let mut start = 0;
-            for piece in s.pieces.chunks_exact(3) {
-                let end = piece[2] as usize;
-                let ring = &s.rings[start..end];
-                let _ = acc.piece_by(ring.len(), |k| at[ring[k] as usize], piece[0] == 1);
+            for piece in s.pieces.chunks_exact(2) {
+                let end = piece[1] as usize;
+                let on_b = piece[0] >> 16 == 1;
+                let _ = acc.piece_by(end - start, |k| at[ring_entry(s.rings, start + k)], on_b);
                 start = end;
             }
             let (volume, centroid) = acc.volume_centroid()?;
@@ -1247,10 +1272,86 @@ mod tests {
         );
     }
 
+    /// The packed words give back every part, with indices up to the last one that fits
+    /// ([`INDEX_LIMIT`]) and an odd number of ring entries (the last word half used).
+    #[test]
+    fn packed_words_give_back_indices_up_to_the_limit() {
+        let top = (INDEX_LIMIT - 1) as u32;
+        let corners = vec![
+            Corner::Vertex { side: 0, i: 7 },
+            Corner::Vertex { side: 1, i: top },
+            Corner::Edge {
+                side: 0,
+                i: 3,
+                j: top,
+                face: top,
+            },
+            Corner::Edge {
+                side: 1,
+                i: top - 1,
+                j: top,
+                face: 0,
+            },
+        ];
+        let parts = Parts {
+            corners: corners.clone(),
+            pieces: vec![(0, top, 3), (1, 5, 5)],
+            rings: vec![0, 2, 3, 1, 3],
+            near: vec![(1, top, 0.25), (0, 9, 0.5)],
+            clearance: 0.125,
+            budgets: vec![0.0, 1.5, 2.5, 0.0],
+            ..Parts::default()
+        };
+        let s = Structure::pack(&parts);
+        assert_eq!(corners_of(&s), corners);
+        let w = s.packed().sections();
+        assert_eq!(w.clearance, 0.125);
+        assert_eq!(w.pieces, [top, 3, 1 << 16 | 5, 5]);
+        let rings: Vec<usize> = (0..5).map(|k| ring_entry(w.rings, k)).collect();
+        assert_eq!(rings, [0, 2, 3, 1, 3]);
+        assert_eq!(
+            w.near,
+            [1 << 16 | top, 0.25f32.to_bits(), 9, 0.5f32.to_bits()]
+        );
+        let budgets: Vec<f32> = w.budgets.iter().map(|&b| f32::from_bits(b)).collect();
+        assert_eq!(budgets, [0.0, 1.5, 2.5, 0.0]);
+    }
+
+    /// A hull with more faces than a structure's 16-bit indices can name (a 9-face I_P
+    /// template subdivided six times) has no structure: its contacts are clipped, and give
+    /// the same overlap as the clipping alone.
+    #[test]
+    fn a_hull_with_more_faces_than_the_index_limit_is_clipped() {
+        let params = Params {
+            faces: 9,
+            ..Default::default()
+        };
+        let mesh = generate(&params, 3, 0).unwrap().mesh;
+        let topo = mesh.topology(None).unwrap();
+        let started = std::time::Instant::now();
+        let huge = Shape::from_mesh(&crate::subdiv::subdivide(&mesh, &topo, 6)).unwrap();
+        eprintln!(
+            "{} vertices, {} faces in {:?}",
+            huge.vertices.len(),
+            huge.face_count(),
+            started.elapsed()
+        );
+        assert!(huge.face_count() >= INDEX_LIMIT);
+        let cube = Shape::from_mesh(&cube(0.5 * huge.radius)).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for _ in 0..20 {
+            let (a, b, dir, _) = thin_contact(&mut rng, &huge, &cube);
+            let clipped = overlap_parts(&huge, &a, &cube, &b, &dir).map(|(o, _)| o);
+            let (o, found) = overlap_kept(&huge, &a, &cube, &b, &dir, None, true).unwrap();
+            assert_eq!(found, Found::None);
+            assert_eq!(Some(o), clipped);
+        }
+    }
+
     /// A structure's corners, in order.
     fn corners_of(s: &Structure) -> Vec<Corner> {
         let words = s.packed().sections().corners;
-        words.chunks_exact(4).map(corner_of).collect()
+        words.chunks_exact(2).map(corner_of).collect()
     }
 
     fn all(s: &Shape) -> Vec<u32> {
