@@ -1005,6 +1005,13 @@ impl<'a> Packed<'a> {
         })
     }
 
+    /// The structure of these words, owned.
+    pub fn to_structure(&self) -> Structure {
+        Structure {
+            words: self.words.to_vec(),
+        }
+    }
+
     /// The words, to be copied (a contact list keeps them in one buffer).
     pub fn words(&self) -> &'a [u32] {
         self.words
@@ -1013,7 +1020,7 @@ impl<'a> Packed<'a> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::overlap::{overlap_kept, overlap_parts, Found};
+    use super::super::overlap::{overlap_kept, overlap_kept_or, overlap_parts, Found};
     use super::*;
     use crate::math::unit_f64;
     use crate::mesh::cube;
@@ -1402,6 +1409,51 @@ mod tests {
         }
         let press = sb.radius * 10f64.powf(-4.0 + 2.0 * unit_f64(rng.next_u64()));
         (a, at(hi - press), dir, q)
+    }
+
+    /// A pair back at the pose of a structure it had before (its alternate), while the kept
+    /// one is from elsewhere: the alternate holds and gives the bits of a fresh overlap. When
+    /// the alternate does not hold either, the structure is found afresh; without a kept one
+    /// the alternate is not tried.
+    #[test]
+    fn an_alternate_that_holds_gives_the_fresh_overlap() {
+        let shapes = large_shapes();
+        let mut rng = ChaCha8Rng::seed_from_u64(17);
+        let mut held = 0;
+        for t in 0..60 {
+            let (sa, sb) = (&shapes[t % 3], &shapes[(t / 3) % 3]);
+            let (a1, b1, d1, _) = thin_contact(&mut rng, sa, sb);
+            let (a2, b2, d2, _) = thin_contact(&mut rng, sa, sb);
+            let (Some((o1, Found::New(s1))), Some((_, Found::New(s2)))) = (
+                overlap_kept(sa, &a1, sb, &b1, &d1, None, true),
+                overlap_kept(sa, &a2, sb, &b2, &d2, None, true),
+            ) else {
+                continue;
+            };
+            let at_1 = |kept: &Structure, alternate: Option<&Structure>| {
+                let (o, how) = overlap_kept_or(
+                    sa,
+                    &a1,
+                    sb,
+                    &b1,
+                    &d1,
+                    Some(kept.packed()),
+                    || alternate.map(Structure::packed),
+                    true,
+                )
+                .unwrap();
+                assert_eq!(format!("{o:?}"), format!("{o1:?}"), "pose {t}");
+                how
+            };
+            assert_eq!(at_1(&s2, Some(&s1)), Found::Alternate, "pose {t}");
+            assert_eq!(at_1(&s2, Some(&s2)), Found::New(s1.clone()), "pose {t}");
+            assert_eq!(at_1(&s2, None), Found::New(s1.clone()), "pose {t}");
+            let (_, how) =
+                overlap_kept_or(sa, &a1, sb, &b1, &d1, None, || Some(s1.packed()), true).unwrap();
+            assert_eq!(how, Found::New(s1), "pose {t}");
+            held += 1;
+        }
+        assert!(held >= 30, "only {held} pairs of poses had structures");
     }
 
     #[test]

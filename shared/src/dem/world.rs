@@ -26,9 +26,12 @@
 use super::broad::{overlap as overlap_boxes, Aabb, Broad};
 use super::contacts::{Carry, Contacts, Cursor, Part};
 use super::gjk::Hints;
-use super::overlap::{centre_line, gap_proof, overlap_kept, Found, GapProof, Overlap, WallFound};
+use super::overlap::{
+    centre_line, gap_proof, overlap_kept, overlap_kept_or, Found, GapProof, Overlap, WallFound,
+};
 use super::shape::{motion_bound, Posed, Remade, Shape};
 use super::spread::spread;
+use super::structure::Structure;
 use super::wall::Wall;
 use crate::math::{cube, pow5, Vec3};
 use nalgebra::UnitQuaternion;
@@ -201,6 +204,10 @@ pub struct World {
     posed: Vec<Posed>,
     /// A spare buffer for the kept structures' words when [`Contacts::keep`] compacts them.
     kept_buffer: Vec<u32>,
+    /// Per body pair in contact whose kept structure stopped holding: that structure, and the
+    /// pair's shapes then, tried before a structure is looked for ([`overlap_kept_or`]). Only
+    /// speed depends on it, so it is not part of the state.
+    alternates: Alternates,
     broad: Broad,
     buffers: Buffers,
     /// Whether contacts keep their overlap's structure for the next step ([`super::structure`]).
@@ -316,6 +323,12 @@ struct WallExtra {
     at: usize,
 }
 
+/// [`World::alternates`]: by body pair, the shapes and the structure.
+type Alternates = std::collections::HashMap<(u32, u32), ([u32; 2], Structure)>;
+
+/// Every this many steps, the alternates of pairs no longer in contact are dropped.
+const ALTERNATES_PRUNED: u64 = 64;
+
 /// What the narrow phase hands back for one touching pair.
 struct Touch {
     force: Vec3,
@@ -326,6 +339,9 @@ struct Touch {
     /// kept, at `at` in the last step's list.
     kept: Found,
     at: usize,
+    /// The structure kept at `at` stopped holding: it becomes the pair's alternate, with the
+    /// pair's shapes.
+    retired: Option<[u32; 2]>,
 }
 
 impl World {
@@ -346,6 +362,7 @@ impl World {
             separations: Separations::default(),
             posed: Vec::new(),
             kept_buffer: Vec::new(),
+            alternates: Alternates::new(),
             broad: Broad::default(),
             buffers: Buffers::default(),
             keep_structures: true,
@@ -435,6 +452,7 @@ impl World {
                 .transform_vector(&body_omega.component_mul(&b.moments));
         }
         self.contacts.clear();
+        self.alternates.clear();
         self.separations = Separations::default();
         self.energy = Energy {
             kinetic: self.bodies.iter().map(Body::kinetic_energy).sum(),
@@ -510,6 +528,7 @@ impl World {
         self.broad = Broad::default();
         self.posed.clear();
         self.kept_buffer.clear();
+        self.alternates.clear();
         new_id
     }
 
@@ -678,6 +697,7 @@ impl World {
             point,
             slip_energy,
             kept: Found::None,
+            retired: None,
             at: 0,
         };
         (contact, touch)
@@ -741,10 +761,16 @@ impl World {
             // Warm start: the last normal bounds this step's overlap most tightly; a new pair
             // is first tested for a gap, from the direction that proved it last step.
             let last = self.contacts.seek(at, &key);
+            let mut had = false;
             let (o, kept) = match last {
                 Some((c, kept)) => {
                     let kept = kept.filter(|_| self.keep_structures);
-                    overlap_kept(si, pi, sj, pj, &c.normal, kept, true)
+                    had = kept.is_some();
+                    let alternate = || {
+                        let (shapes, s) = self.alternates.get(&(i, j))?;
+                        (*shapes == [bi.shape, bj.shape]).then(|| s.packed())
+                    };
+                    overlap_kept_or(si, pi, sj, pj, &c.normal, kept, alternate, true)
                 }
                 None => {
                     let line = centre_line(pi, pj);
@@ -780,6 +806,7 @@ impl World {
             let last = last.map(|(c, _)| c);
             let (contact, mut touch) = self.touch(key, last, &o, va, self.material.friction);
             // `at` is still where the seek left it: the contact's place, when it had one.
+            touch.retired = (had && kept != Found::Kept).then_some([bi.shape, bj.shape]);
             (touch.kept, touch.at) = (kept, at.index());
             Some((key, contact, touch))
         };
@@ -927,10 +954,12 @@ impl World {
             walls,
             contacts,
             kept_buffer,
+            alternates,
             energy,
             material,
             keep_structures,
             gravity,
+            step,
             ..
         } = self;
         let (material, gravity) = (&*material, *gravity);
@@ -1030,11 +1059,28 @@ impl World {
             let old_parts = contacts.set_parts(parts);
             // The structures move on with their contacts (body pairs come first in key order).
             if *keep_structures {
-                let pairs = (chunks.iter().flat_map(|c| &c.touches)).map(|t| match &t.kept {
-                    Found::Kept => Carry::Kept(t.at),
-                    Found::New(s) => Carry::New(s.packed().words()),
-                    Found::None => Carry::None,
-                });
+                // A structure that stopped holding becomes its pair's alternate (the one it
+                // replaces, if any, is the structure that holds now: see `Found::Alternate`).
+                let mut retired = Vec::new();
+                let body_pair = |k: &ContactKey| match *k {
+                    (Partner::Body(i), j) => (i, j),
+                    (_, j) => (u32::MAX, j),
+                };
+                let touched = chunks.iter().flat_map(|c| &c.touches);
+                let pairs = touched
+                    .zip(contacts.keys().map(body_pair))
+                    .map(|(t, pair)| {
+                        if let Some(old) = t.retired.and_then(|s| Some((s, last_kept.get(t.at)?))) {
+                            retired.push((pair, (old.0, old.1.to_structure())));
+                        }
+                        match &t.kept {
+                            Found::Kept => Carry::Kept(t.at),
+                            Found::New(s) => Carry::New(s.packed().words()),
+                            Found::Alternate => (alternates.get(&pair))
+                                .map_or(Carry::None, |(_, s)| Carry::New(s.packed().words())),
+                            Found::None => Carry::None,
+                        }
+                    });
                 // Then the walls' sets (their contacts come last in key order).
                 let walls = wall_touches.iter().map(|(_, x)| match &x.found {
                     WallFound::Kept => Carry::Kept(x.at),
@@ -1044,6 +1090,11 @@ impl World {
                 let carry: Vec<Carry> = pairs.chain(walls).collect();
                 let spare = std::mem::take(kept_buffer);
                 *kept_buffer = contacts.keep(last_kept, &carry, spare, par);
+                drop(carry);
+                alternates.extend(retired);
+                if *step % ALTERNATES_PRUNED == 0 {
+                    alternates.retain(|&(i, j), _| contacts.contains_key(&(Partner::Body(i), j)));
+                }
             }
             energy.elastic = sums.elastic;
             energy.friction += sums.slip;
