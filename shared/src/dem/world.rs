@@ -339,9 +339,9 @@ struct Touch {
     /// kept, at `at` in the last step's list.
     kept: Found,
     at: usize,
-    /// The structure kept at `at` stopped holding: it becomes the pair's alternate, with the
-    /// pair's shapes.
-    retired: Option<[u32; 2]>,
+    /// The structure kept at `at` stopped holding: it becomes the alternate of this body pair,
+    /// of these shapes.
+    retired: Option<((u32, u32), [u32; 2])>,
 }
 
 impl World {
@@ -806,7 +806,11 @@ impl World {
             let last = last.map(|(c, _)| c);
             let (contact, mut touch) = self.touch(key, last, &o, va, self.material.friction);
             // `at` is still where the seek left it: the contact's place, when it had one.
-            touch.retired = (had && kept != Found::Kept).then_some([bi.shape, bj.shape]);
+            // Alternates only for large hulls, whose structures cost most to find (for two
+            // I_P bodies, keeping and trying them cost more than finding one afresh).
+            let large = si.climb.is_some() || sj.climb.is_some();
+            touch.retired =
+                (had && large && kept != Found::Kept).then_some(((i, j), [bi.shape, bj.shape]));
             (touch.kept, touch.at) = (kept, at.index());
             Some((key, contact, touch))
         };
@@ -1062,25 +1066,21 @@ impl World {
                 // A structure that stopped holding becomes its pair's alternate (the one it
                 // replaces, if any, is the structure that holds now: see `Found::Alternate`).
                 let mut retired = Vec::new();
-                let body_pair = |k: &ContactKey| match *k {
-                    (Partner::Body(i), j) => (i, j),
-                    (_, j) => (u32::MAX, j),
-                };
-                let touched = chunks.iter().flat_map(|c| &c.touches);
-                let pairs = touched
-                    .zip(contacts.keys().map(body_pair))
-                    .map(|(t, pair)| {
-                        if let Some(old) = t.retired.and_then(|s| Some((s, last_kept.get(t.at)?))) {
-                            retired.push((pair, (old.0, old.1.to_structure())));
-                        }
-                        match &t.kept {
-                            Found::Kept => Carry::Kept(t.at),
-                            Found::New(s) => Carry::New(s.packed().words()),
-                            Found::Alternate => (alternates.get(&pair))
-                                .map_or(Carry::None, |(_, s)| Carry::New(s.packed().words())),
-                            Found::None => Carry::None,
-                        }
-                    });
+                let pairs = (chunks.iter().flat_map(|c| &c.touches)).map(|t| {
+                    let old = t
+                        .retired
+                        .and_then(|(p, s)| Some((p, s, last_kept.get(t.at)?)));
+                    if let Some((pair, shapes, old)) = old {
+                        retired.push((pair, (shapes, old.to_structure())));
+                    }
+                    match &t.kept {
+                        Found::Kept => Carry::Kept(t.at),
+                        Found::New(s) => Carry::New(s.packed().words()),
+                        Found::Alternate => (t.retired.and_then(|(p, _)| alternates.get(&p)))
+                            .map_or(Carry::None, |(_, s)| Carry::New(s.packed().words())),
+                        Found::None => Carry::None,
+                    }
+                });
                 // Then the walls' sets (their contacts come last in key order).
                 let walls = wall_touches.iter().map(|(_, x)| match &x.found {
                     WallFound::Kept => Carry::Kept(x.at),
