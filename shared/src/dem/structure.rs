@@ -479,7 +479,8 @@ struct Finding {
     on_planes: Vec<(u8, u32)>,
     on_ends: Vec<u32>,
     buf: Vec<(u8, u32)>,
-    on: Vec<((u8, u32), u16)>,
+    /// As [`on_key`]s, which sort as (plane, corner) do.
+    on: Vec<u64>,
     /// Where each plane's group (a run of `on`) ends.
     groups: Vec<u32>,
     ring: Vec<(f64, u16)>,
@@ -681,7 +682,7 @@ fn discover_with(
     on.clear();
     for (k, &(c, _)) in found.iter().enumerate() {
         pair.planes(c, buf);
-        on.extend(buf.iter().map(|&pl| (pl, k as u16)));
+        on.extend(buf.iter().map(|&pl| on_key(pl, k as u16)));
         on_planes.extend_from_slice(buf);
         on_ends.push(on_planes.len() as u32);
     }
@@ -693,7 +694,7 @@ fn discover_with(
     on.sort_unstable();
     groups.clear();
     for k in 1..=on.len() {
-        if k == on.len() || on[k].0 != on[k - 1].0 {
+        if k == on.len() || on[k] >> 16 != on[k - 1] >> 16 {
             groups.push(k as u32);
         }
     }
@@ -715,17 +716,17 @@ fn discover_with(
         if g.len() < 3 {
             return None; // a face touching the overlap along an edge or at a point
         }
-        let (side, face) = g[0].0;
+        let (side, face) = ((g[0] >> 48) as u8, (g[0] >> 16) as u32);
         let (n, _) = pair.plane(side, face);
-        let at = |k: u16| found[k as usize].1;
-        let mean = g.iter().map(|&(_, k)| at(k)).sum::<Vec3>() / g.len() as f64;
-        let first = at(g[0].1) - mean;
+        let at = |x: u64| found[usize::from(x as u16)].1;
+        let mean = g.iter().map(|&x| at(x)).sum::<Vec3>() / g.len() as f64;
+        let first = at(g[0]) - mean;
         let u = first - n * n.dot(&first);
         let w = n.cross(&u);
         ring.clear();
-        ring.extend(g.iter().map(|&(_, k)| {
-            let r = at(k) - mean;
-            (pseudo_angle(r.dot(&u), r.dot(&w)), k)
+        ring.extend(g.iter().map(|&x| {
+            let r = at(x) - mean;
+            (pseudo_angle(r.dot(&u), r.dot(&w)), x as u16)
         }));
         ring.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
         let lowest = (0..ring.len()).min_by_key(|&k| ring[k].1).unwrap_or(0);
@@ -757,6 +758,13 @@ fn discover_with(
     parts.clearance = clearance;
     parts.found_at = [at(pair.posed[0]), at(pair.posed[1])];
     Some(Structure::pack(parts))
+}
+
+/// Plane `(side, face)` and corner `k` in one number, ordered as the pair: a plane's corners
+/// are then a run of the sorted list. Sorting the pairs themselves took 3.3 times as long
+/// (88 against 27 ms in 300 steps of the 5000 Ab_3 bed).
+fn on_key((side, face): (u8, u32), k: u16) -> u64 {
+    u64::from(side) << 48 | u64::from(face) << 16 | u64::from(k)
 }
 
 /// The greatest `f32` not above `x` (finite `x`): a clearance kept in one word, rounded so that
