@@ -810,7 +810,7 @@ impl World {
             // I_P bodies, keeping and trying them cost more than finding one afresh).
             let large = si.climb.is_some() || sj.climb.is_some();
             touch.retired =
-                (had && large && kept != Found::Kept).then_some(((i, j), [bi.shape, bj.shape]));
+                (had && large && !matches!(kept, Found::Kept)).then_some(((i, j), [bi.shape, bj.shape]));
             (touch.kept, touch.at) = (kept, at.index());
             Some((key, contact, touch))
         };
