@@ -339,9 +339,8 @@ struct Touch {
     /// kept, at `at` in the last step's list.
     kept: Found,
     at: usize,
-    /// The structure kept at `at` stopped holding: it becomes the alternate of this body pair,
-    /// of these shapes.
-    retired: Option<((u32, u32), [u32; 2])>,
+    /// The structure kept at `at` stopped holding: it becomes the pair's alternate.
+    retired: bool,
 }
 
 impl World {
@@ -697,7 +696,7 @@ impl World {
             point,
             slip_energy,
             kept: Found::None,
-            retired: None,
+            retired: false,
             at: 0,
         };
         (contact, touch)
@@ -809,8 +808,7 @@ impl World {
             // Alternates only for large hulls, whose structures cost most to find (for two
             // I_P bodies, keeping and trying them cost more than finding one afresh).
             let large = si.climb.is_some() || sj.climb.is_some();
-            touch.retired =
-                (had && large && !matches!(kept, Found::Kept)).then_some(((i, j), [bi.shape, bj.shape]));
+            touch.retired = had && large && !matches!(kept, Found::Kept);
             (touch.kept, touch.at) = (kept, at.index());
             Some((key, contact, touch))
         };
@@ -1061,22 +1059,22 @@ impl World {
             }
             let last_kept = contacts.take_kept();
             let old_parts = contacts.set_parts(parts);
+            let mut retired = Vec::new();
             // The structures move on with their contacts (body pairs come first in key order).
             if *keep_structures {
-                // A structure that stopped holding becomes its pair's alternate (the one it
-                // replaces, if any, is the structure that holds now: see `Found::Alternate`).
-                let mut retired = Vec::new();
-                let pairs = (chunks.iter().flat_map(|c| &c.touches)).map(|t| {
-                    let old = t
-                        .retired
-                        .and_then(|(p, s)| Some((p, s, last_kept.get(t.at)?)));
-                    if let Some((pair, shapes, old)) = old {
-                        retired.push((pair, (shapes, old.to_structure())));
+                // The structures that stopped holding, for the alternates (after the bodies
+                // have moved: their shapes are read then).
+                let touched = chunks
+                    .iter()
+                    .flat_map(|c| c.touches.iter().zip(&c.touching));
+                let pairs = touched.map(|(t, pair)| {
+                    if let Some(old) = last_kept.get(t.at).filter(|_| t.retired) {
+                        retired.push((*pair, old.to_structure()));
                     }
                     match &t.kept {
                         Found::Kept => Carry::Kept(t.at),
                         Found::New(s) => Carry::New(s.packed().words()),
-                        Found::Alternate => (t.retired.and_then(|(p, _)| alternates.get(&p)))
+                        Found::Alternate => (alternates.get(pair))
                             .map_or(Carry::None, |(_, s)| Carry::New(s.packed().words())),
                         Found::None => Carry::None,
                     }
@@ -1090,22 +1088,26 @@ impl World {
                 let carry: Vec<Carry> = pairs.chain(walls).collect();
                 let spare = std::mem::take(kept_buffer);
                 *kept_buffer = contacts.keep(last_kept, &carry, spare, par);
-                drop(carry);
-                alternates.extend(retired);
-                if *step % ALTERNATES_PRUNED == 0 {
-                    alternates.retain(|&(i, j), _| contacts.contains_key(&(Partner::Body(i), j)));
-                }
             }
             energy.elastic = sums.elastic;
             energy.friction += sums.slip;
             energy.wall_work += wall_work;
-            (sums.force / touches.len() as f64, old_parts)
+            (sums.force / touches.len() as f64, old_parts, retired)
         };
-        let (terms, (mean_contact_force, old_parts)) = if par {
+        let (terms, (mean_contact_force, old_parts, retired)) = if par {
             rayon::join(move_bodies, list_contacts)
         } else {
             (move_bodies(), list_contacts())
         };
+        // A structure that stopped holding becomes its pair's alternate (the one it replaces,
+        // if any, is the structure that holds now: see `Found::Alternate`).
+        for ((i, j), s) in retired {
+            let shapes = [bodies[i as usize].shape, bodies[j as usize].shape];
+            alternates.insert((i, j), (shapes, s));
+        }
+        if *step % ALTERNATES_PRUNED == 0 {
+            alternates.retain(|&(i, j), _| contacts.contains_key(&(Partner::Body(i), j)));
+        }
         let (mut kinetic, mut damping, mut gravity_work) = (0.0, 0.0, 0.0);
         let (mut free, mut net) = (0usize, 0.0);
         for [f, d, w, k] in terms.into_iter().flatten() {
