@@ -91,11 +91,12 @@ pub struct Structure {
 /// corners, near planes, pieces and ring entries; the clearance; whether it has budgets),
 /// where the bodies were when it was found ([`FOUND_AT`] words) and one budget per corner
 /// (an `f32`), both only when some corner has a budget or the clearance is finite, then 2
-/// words per corner, 2 per piece, the ring entries two to a word (16 bits each) and last 2
-/// words per near plane, which a step reads only the first few of (see [`Packed::evaluate`]).
-/// Vertex and face indices take 16 bits ([`INDEX_LIMIT`]). On the 5000 Ab_3 bed a structure
-/// had 581 words when it took 4 per corner, 3 per piece and near plane and 1 per ring entry,
-/// with the near planes before the pieces; now about 375, and 230 before the near planes.
+/// words per corner, 1 per piece (its body, face and where its ring ends), the ring entries
+/// two to a word (16 bits each) and last 2 words per near plane, which a step reads only the
+/// first few of (see [`Packed::evaluate`]). Vertex and face indices take 15 bits
+/// ([`INDEX_LIMIT`]). On the 5000 Ab_3 bed a structure had 581 words when it took 4 per
+/// corner, 3 per piece and near plane and 1 per ring entry, with the near planes before the
+/// pieces; now about 350, and 205 before the near planes.
 #[derive(Clone, Copy, Debug)]
 pub struct Packed<'a> {
     words: &'a [u32],
@@ -106,8 +107,8 @@ pub struct Packed<'a> {
 const HEADER: usize = 4 + 2 + 1;
 
 /// Shapes with this many vertices or faces or more have no structures (their indices would
-/// not fit the 16 bits a structure gives them): their overlaps are clipped every step.
-pub const INDEX_LIMIT: usize = 1 << 16;
+/// not fit the 15 bits a structure gives them): their overlaps are clipped every step.
+pub const INDEX_LIMIT: usize = 1 << 15;
 
 /// Words of `found_at`: 2 poses ([`pose_words`]).
 const FOUND_AT: usize = 2 * POSE_WORDS;
@@ -741,6 +742,9 @@ fn discover_with(
             }
         }
         rings.extend(ring.iter().map(|&(_, k)| k));
+        if rings.len() > usize::from(u16::MAX) {
+            return None; // the ring ends would not fit their 16 bits
+        }
         pieces.push((side, face, rings.len() as u32));
     }
     let at = |p: &Posed| (p.pos, p.orientation, p.scale);
@@ -828,7 +832,7 @@ impl Structure {
             + found_at
             + with_budgets
             + 2 * p.corners.len()
-            + 2 * p.pieces.len()
+            + p.pieces.len()
             + p.rings.len().div_ceil(2)
             + 2 * p.near.len();
         let mut w = Vec::with_capacity(len);
@@ -860,7 +864,7 @@ impl Structure {
         w.extend(
             p.pieces
                 .iter()
-                .flat_map(|&(side, face, end)| [u32::from(side) << 16 | face, end]),
+                .map(|&(side, face, end)| u32::from(side) << 31 | face << 16 | end),
         );
         w.extend(
             (p.rings.chunks(2))
@@ -944,7 +948,7 @@ impl<'a> Packed<'a> {
         let (found_at, rest) = w[HEADER..].split_at(if with { FOUND_AT } else { 0 });
         let (budgets, rest) = rest.split_at(if with { count(0) } else { 0 });
         let (corners, rest) = rest.split_at(2 * count(0));
-        let (pieces, rest) = rest.split_at(2 * count(2));
+        let (pieces, rest) = rest.split_at(count(2));
         let (rings, near) = rest.split_at(count(3).div_ceil(2));
         debug_assert_eq!(near.len(), 2 * count(1));
         Sections {
@@ -998,9 +1002,9 @@ impl<'a> Packed<'a> {
             }
             let mut acc = Acc::default();
             let mut start = 0;
-            for piece in s.pieces.chunks_exact(2) {
-                let end = piece[1] as usize;
-                let on_b = piece[0] >> 16 == 1;
+            for &piece in s.pieces {
+                let end = (piece & 0xffff) as usize;
+                let on_b = piece >> 31 == 1;
                 let _ = acc.piece_by(end - start, |k| at[ring_entry(s.rings, start + k)], on_b);
                 start = end;
             }
@@ -1321,7 +1325,7 @@ mod tests {
         assert_eq!(corners_of(&s), corners);
         let w = s.packed().sections();
         assert_eq!(w.clearance, 0.125);
-        assert_eq!(w.pieces, [top, 3, 1 << 16 | 5, 5]);
+        assert_eq!(w.pieces, [top << 16 | 3, 1 << 31 | 5 << 16 | 5]);
         let rings: Vec<usize> = (0..5).map(|k| ring_entry(w.rings, k)).collect();
         assert_eq!(rings, [0, 2, 3, 1, 3]);
         assert_eq!(
