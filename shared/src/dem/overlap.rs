@@ -593,13 +593,18 @@ pub fn overlap_kept_or<'k>(
 ) -> Option<(Overlap, Found)> {
     let had = kept.is_some();
     let pair = || Pair::new(sa, a, sb, b);
+    // A structure renewed (its clearance used up, its vertices checked afresh) is a new one.
+    let renewed = |(o, new): (Overlap, Option<Structure>), held| (o, new.map_or(held, Found::New));
     let kept = kept
         .filter(|_| structured)
-        .and_then(|s| s.evaluate(&pair()?))
-        .map(|o| (o, Found::Kept));
+        .and_then(|s| s.evaluate_renewing(&pair()?))
+        .map(|e| renewed(e, Found::Kept));
     let kept = kept.or_else(|| {
         let alternate = alternate().filter(|_| structured && had)?;
-        Some((alternate.evaluate(&pair()?)?, Found::Alternate))
+        Some(renewed(
+            alternate.evaluate_renewing(&pair()?)?,
+            Found::Alternate,
+        ))
     });
     let (mut o, structure) = match kept {
         Some(found) => found,

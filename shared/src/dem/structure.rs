@@ -45,10 +45,14 @@ const MARGIN_REL: f64 = 1e-9;
 
 /// A vertex corner inside a large body is checked against the planes it was nearer than this
 /// fraction of the pair's size to when found, and against the others by the bodies' motion
-/// since (on the Ab_3 500 bed at rest, 0.13 % of contact-steps use that up). A near plane, too,
-/// is only checked once the motion since could have used up the clearance it had (on the
-/// 2000 Ab_3 bed at rest, 8 % of near planes in 400 steps).
-const NEAR_REL: f64 = 5e-3;
+/// since; when that motion uses up their clearance, the structure is renewed
+/// ([`Packed::renewed`]). A near plane, too, is only checked once the motion since could have
+/// used up the clearance it had. At 5e-3 (until session 24) the 5000 Ab_3 bed's structures had
+/// 74 near planes each (144 of their ~350 words) and 16 500 clearances ran out in 1000 steps;
+/// at 2.5e-3, 27 near planes and 41 000: 1.03x with each found again, and 1.03x more with
+/// each renewed instead (both bodies' motion bounds counted from one pose); 26 -> 21 KiB per
+/// particle. 1.25e-3, renewing, ran as fast.
+const NEAR_REL: f64 = 2.5e-3;
 
 /// A corner of the overlap polyhedron, by what makes it. `side` 0 is body A, 1 body B.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -747,21 +751,29 @@ fn discover_with(
         }
         pieces.push((side, face, rings.len() as u32));
     }
-    let at = |p: &Posed| (p.pos, p.orientation, p.scale);
     corners.clear();
     corners.extend(found.iter().map(|&(c, _)| c));
-    // Each near plane with its clearance rounded down, least first (see `Packed::evaluate`).
     near_words.clear();
     near_words.extend(near.iter().map(|&(c, f, inside)| {
         let k = corners.binary_search(&c).unwrap_or_default() as u16;
         (k, f, f32_at_most(inside))
     }));
-    near_words.sort_unstable_by(|x, y| x.2.total_cmp(&y.2).then((x.0, x.1).cmp(&(y.0, y.1))));
     budgets.clear();
-    budgets.extend(corners.iter().map(|&c| f32_at_most(pair.budget(c))));
     parts.clearance = clearance;
+    Some(seal(pair, parts))
+}
+
+/// The structure of `parts` (corners, pieces, rings, and the near planes as found), with the
+/// near planes put least clearance first and each corner's budget and `found_at` from
+/// `pair`'s poses: the last step of [`discover`] and of [`Packed::renewed`].
+fn seal(pair: &Pair, parts: &mut Parts) -> Structure {
+    let at = |p: &Posed| (p.pos, p.orientation, p.scale);
+    // Least first (see `Packed::evaluate`), ties by corner and face.
+    (parts.near).sort_unstable_by(|x, y| x.2.total_cmp(&y.2).then((x.0, x.1).cmp(&(y.0, y.1))));
+    parts.budgets.clear();
+    (parts.budgets).extend(parts.corners.iter().map(|&c| f32_at_most(pair.budget(c))));
     parts.found_at = [at(pair.posed[0]), at(pair.posed[1])];
-    Some(Structure::pack(parts))
+    Structure::pack(parts)
 }
 
 /// Plane `(side, face)` and corner `k` in one number, ordered as the pair: a plane's corners
@@ -893,6 +905,7 @@ impl Structure {
 
 thread_local! {
     static CORNERS: std::cell::RefCell<Vec<Vec3>> = std::cell::RefCell::default();
+    static RENEWING: std::cell::RefCell<Parts> = std::cell::RefCell::default();
 }
 
 /// The number that [`split`] gave the words `w[0]`, `w[1]` of.
@@ -965,18 +978,28 @@ impl<'a> Packed<'a> {
     /// The overlap of `pair` from this structure, or `None` when it is no longer the overlap's
     /// (a corner failed its check).
     pub fn evaluate(&self, pair: &Pair) -> Option<Overlap> {
+        self.evaluate_renewing(pair).map(|(o, _)| o)
+    }
+
+    /// [`Packed::evaluate`]; where the motion since has used up the clearance of the vertices
+    /// inside a large body, those vertices are checked afresh against every plane, and if they
+    /// pass the structure comes back renewed ([`Packed::renewed`]) with the overlap.
+    pub fn evaluate_renewing(&self, pair: &Pair) -> Option<(Overlap, Option<Structure>)> {
         let s = self.sections();
         // The vertices inside a large body are still inside it by the margin while the bodies
         // have moved less than their clearance allows.
         let mut moved = f64::INFINITY;
+        let mut renew = false;
         if !s.found_at.is_empty() {
             let found_at = [pose_of(s.found_at), pose_of(&s.found_at[POSE_WORDS..])];
             moved = pair.moved_since(&found_at);
             if s.clearance.is_finite() && moved >= s.clearance - pair.margin {
-                return None;
+                // Every corner checked (no budget covers this motion either), and the
+                // vertices afresh by `renewed`.
+                (moved, renew) = (f64::INFINITY, true);
             }
         }
-        CORNERS.with_borrow_mut(|at| {
+        let o = CORNERS.with_borrow_mut(|at| {
             at.clear();
             // A corner within its budget is where it is; the others are checked.
             let budget = |k: usize| {
@@ -989,7 +1012,8 @@ impl<'a> Packed<'a> {
             }
             // A near plane the vertex was farther inside than the margin plus the motion since
             // is still behind it: the list is by clearance, least first, so the rest are too.
-            for n in s.near.chunks_exact(2) {
+            // (A structure to renew has its vertices checked afresh instead.)
+            for n in s.near.chunks_exact(2).take_while(|_| !renew) {
                 if moved + pair.margin < f64::from(f32::from_bits(n[1])) {
                     break;
                 }
@@ -1014,6 +1038,54 @@ impl<'a> Packed<'a> {
                 centroid,
                 area_b: acc.area_b,
             })
+        })?;
+        if !renew {
+            return Some((o, None));
+        }
+        Some((o, Some(self.renewed(pair, &s)?)))
+    }
+
+    /// This structure, whose corners have just passed their checks at `pair`'s poses but
+    /// whose vertices inside a large body have used up their clearance, made again from
+    /// these poses: each such vertex checked against every plane of the other body as
+    /// [`discover`] checks it (`None` when one is not inside), its near planes and the
+    /// clearance found afresh, and the budgets and `found_at` as [`discover`] makes them. The
+    /// same words as [`discover`] gives from these poses, without its search (on the 5000 Ab_3
+    /// bed, 41 000 clearances ran out in 1000 steps).
+    fn renewed(&self, pair: &Pair, s: &Sections) -> Option<Structure> {
+        RENEWING.with_borrow_mut(|parts| {
+            parts.corners.clear();
+            (parts.corners).extend(s.corners.chunks_exact(2).map(corner_of));
+            parts.pieces.clear();
+            (parts.pieces).extend(
+                s.pieces
+                    .iter()
+                    .map(|&w| ((w >> 31) as u8, w >> 16 & 0x7fff, w & 0xffff)),
+            );
+            let entries = s.pieces.last().map_or(0, |&w| (w & 0xffff) as usize);
+            parts.rings.clear();
+            (parts.rings).extend((0..entries).map(|k| ring_entry(s.rings, k) as u16));
+            parts.near.clear();
+            parts.clearance = f64::INFINITY;
+            for (k, &c) in parts.corners.iter().enumerate() {
+                let Corner::Vertex { side, i } = c else {
+                    continue;
+                };
+                if !pair.large[1 - side as usize] {
+                    continue;
+                }
+                let (p, mut inside) = (pair.vertex(side, i), true);
+                let near = &mut parts.near;
+                let far = pair.far_clearance(1 - side, &p, |f, inside_by| {
+                    inside &= pair.vertex_inside(1 - side, f, &p);
+                    near.push((k as u16, f, f32_at_most(inside_by)));
+                });
+                if !inside {
+                    return None;
+                }
+                parts.clearance = parts.clearance.min(far);
+            }
+            Some(seal(pair, parts))
         })
     }
 
@@ -1515,6 +1587,76 @@ mod tests {
             "{structured} of {trials} structured"
         );
         assert!(held > 40 && changed > 10, "held {held}, changed {changed}");
+    }
+
+    /// A structure renewed at new poses ([`Packed::renewed`]: its vertices' near planes and
+    /// clearance found again) has the words that [`discover`] gives there, on thin contacts
+    /// of Ab_3 hulls with each other and with an I_P body moved a little; and a structure
+    /// whose clearance the motion has used up comes back renewed from
+    /// [`Packed::evaluate_renewing`], with the fresh overlap.
+    #[test]
+    fn a_renewed_structure_has_the_words_found_afresh() {
+        let shapes = large_shapes();
+        let mut rng = ChaCha8Rng::seed_from_u64(19);
+        let (mut renewed, mut ran_out) = (0, 0);
+        for t in 0..90 {
+            let (i, j) = [(0, 1), (1, 2), (2, 0)][t % 3];
+            let (sa, sb) = (&shapes[i], &shapes[j]);
+            let (a, b, dir, q) = thin_contact(&mut rng, sa, sb);
+            let Some((_, Found::New(s))) = overlap_kept(sa, &a, sb, &b, &dir, None, true) else {
+                continue;
+            };
+            for step in [1e-7, 1e-5, 1e-4] {
+                let turn = rotation(&mut rng, step);
+                let at = b.pos + direction(&mut rng) * step * sb.radius;
+                let moved = sb.posed(&at, &(turn * q), 1.0);
+                let pair = Pair::new(sa, &a, sb, &moved).unwrap();
+                let fresh = overlap_kept(sa, &a, sb, &moved, &dir, None, true);
+                let Some((_, Found::New(fresh))) = fresh else {
+                    continue;
+                };
+                let packed = s.packed();
+                if packed.evaluate(&pair).is_some() {
+                    // Its corners still the overlap's: renewed, it is the fresh one.
+                    if let Some(r) = packed.renewed(&pair, &packed.sections()) {
+                        assert_eq!(r, fresh, "trial {t}, step {step}");
+                        renewed += 1;
+                    }
+                }
+            }
+            // Both bodies carried along together by a tenth of A's radius: the same overlap
+            // relative to them, and its clearance used up by the motion (which counts both
+            // bodies'), so evaluating renews it into the structure found there afresh.
+            let shift = direction(&mut rng) * 0.1 * sa.radius;
+            let (a2, b2) = (
+                sa.posed(
+                    &(a.pos + shift),
+                    &UnitQuaternion::from_rotation_matrix(&a.rot),
+                    1.0,
+                ),
+                sb.posed(&(b.pos + shift), &q, 1.0),
+            );
+            let packed = s.packed();
+            let w = packed.sections();
+            if !w.clearance.is_finite() {
+                continue;
+            }
+            let pair = Pair::new(sa, &a2, sb, &b2).unwrap();
+            let found_at = [pose_of(w.found_at), pose_of(&w.found_at[POSE_WORDS..])];
+            assert!(pair.moved_since(&found_at) >= w.clearance, "trial {t}");
+            let fresh = overlap_kept(sa, &a2, sb, &b2, &dir, None, true);
+            if let (Some((e, again)), Some((o, Found::New(fresh)))) =
+                (packed.evaluate_renewing(&pair), fresh)
+            {
+                assert_eq!(format!("{e:?}"), format!("{o:?}"), "trial {t}");
+                assert_eq!(again, Some(fresh), "trial {t}");
+                ran_out += 1;
+            }
+        }
+        assert!(
+            renewed > 60 && ran_out > 5,
+            "renewed {renewed}, ran out {ran_out}"
+        );
     }
 
     /// The budget of an edge corner against a large hull (its crossing must stay inside a
