@@ -228,6 +228,25 @@ impl<'a> Pair<'a> {
         }) - slack
     }
 
+    /// Whether `p` (world, a vertex of the other body) is inside every face plane of the large
+    /// body `side` by the margin, as a vertex corner is found: the planes it may be near
+    /// ([`Pair::far_clearance`]) each checked as [`Pair::vertex_inside`] will check them, and
+    /// passed to `near` with how far inside they are; then the clearance of the others, else
+    /// `None`.
+    fn inside_with_clearance(
+        &self,
+        side: u8,
+        p: &Vec3,
+        mut near: impl FnMut(u32, f64),
+    ) -> Option<f64> {
+        let mut inside = true;
+        let far = self.far_clearance(side, p, |f, inside_by| {
+            inside &= self.vertex_inside(side, f, p);
+            near(f, inside_by);
+        });
+        inside.then_some(far)
+    }
+
     /// The sum of the two bodies' [`motion_bound_tight`]s since `found_at` (for any point within
     /// their bounding spheres); infinite when a scale changed.
     fn moved_since(&self, found_at: &[(Vec3, UnitQuaternion<f64>, f64); 2]) -> f64 {
@@ -590,15 +609,12 @@ fn discover_with(
                 if !planes.iter().all(|pl| pair.inside_plane(pl, &p)) {
                     continue;
                 }
-                let (listed, mut inside) = (near.len(), true);
-                let far = pair.far_clearance(1 - side, &p, |f, inside_by| {
-                    inside &= pair.vertex_inside(1 - side, f, &p);
-                    near.push((c, f, inside_by));
-                });
-                if !inside {
+                let listed = near.len();
+                let push = |f, inside_by| near.push((c, f, inside_by));
+                let Some(far) = pair.inside_with_clearance(1 - side, &p, push) else {
                     near.truncate(listed);
                     continue;
-                }
+                };
                 clearance = clearance.min(far);
             }
             found.push((c, p));
@@ -1074,15 +1090,9 @@ impl<'a> Packed<'a> {
                 if !pair.large[1 - side as usize] {
                     continue;
                 }
-                let (p, mut inside) = (pair.vertex(side, i), true);
-                let near = &mut parts.near;
-                let far = pair.far_clearance(1 - side, &p, |f, inside_by| {
-                    inside &= pair.vertex_inside(1 - side, f, &p);
-                    near.push((k as u16, f, f32_at_most(inside_by)));
-                });
-                if !inside {
-                    return None;
-                }
+                let (p, near) = (pair.vertex(side, i), &mut parts.near);
+                let push = |f, inside_by| near.push((k as u16, f, f32_at_most(inside_by)));
+                let far = pair.inside_with_clearance(1 - side, &p, push)?;
                 parts.clearance = parts.clearance.min(far);
             }
             Some(seal(pair, parts))
