@@ -1,6 +1,8 @@
 # Throughput benchmarks: kernels in process (criterion; one thread), the time step against
 # energy error (benches/timestep.rs, ~2 min), and the tools through the pipe
-# (pipelines/bench.sh), side by side in one run. Results: docs/bench.md.
+# (pipelines/bench.sh), side by side in one run; the DEM rows between two readings of what the
+# machine gives this hour (benches/machine.rs: clock and load latency, 10 s). Results:
+# docs/bench.md.
 bench: build
 	cargo bench --locked -p granular-shared --bench geometry -- --noplot 2>&1 \
 	  | awk '/^geometry\// {name=$$0} /thrpt:/ && name {print name " " $$0; name=""}'
@@ -8,4 +10,6 @@ bench: build
 	  | awk '/^contacts\// {name=$$0} /thrpt:/ && name {print name " " $$0; name=""}'
 	cargo bench --locked -p granular-shared --bench timestep
 	pipelines/bench.sh
+	cargo bench --locked -p granular-shared --bench machine
 	pipelines/bench-dem.sh
+	cargo bench --locked -p granular-shared --bench machine

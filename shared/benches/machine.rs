@@ -1,0 +1,88 @@
+//! What the machine gives this hour, so that throughput figures from different runs can be
+//! compared: the effective clock of one core and the latency of a load that misses each level
+//! of the cache. `make bench` runs it before and after the DEM rows (`pipelines/bench-dem.sh`).
+//!
+//! Why: on the 2-core development VM the same `dem` binary, with the same instruction count
+//! (callgrind), ran 1.7x slower in one session than in the one before, while compute-bound
+//! kernels ran at the same speed (docs/bench.md, "Session 25"). A step of `dem` reads a few MB
+//! to a hundred MB of bodies, contacts and structures, so it is sensitive to how much of the
+//! shared last-level cache the VM's neighbours leave it; these lines say which kind of hour a
+//! run was measured in.
+//!
+//! - Clock: a chain of dependent integer or-multiplies, timed (4 cycles a link on current
+//!   x86-64 cores, so the line also gives the clock those cores run at).
+//! - Latency: a random cyclic chain of pointers, one per 64-byte line, over a working set of
+//!   each size, walked for a fixed number of dependent loads (a load cannot start before the
+//!   last one ends, so the time per load is the latency of wherever the set lives, page walks
+//!   included).
+
+use std::hint::black_box;
+use std::time::Instant;
+
+/// Nanoseconds per link of a chain of dependent `x = x * (x | 1)` on one core (an `or` and an
+/// integer multiply, 1 + 3 cycles of latency on current x86-64 cores, so 4 / ns is the clock in
+/// GHz there): the core's own speed, without memory.
+fn chain_ns() -> f64 {
+    const LINKS: u64 = 200_000_000;
+    let mut x: u64 = black_box(1);
+    let clock = Instant::now();
+    for _ in 0..LINKS {
+        // Not affine, so the compiler cannot fold or reorder the chain: `or`, then multiply.
+        x = x.wrapping_mul(x | 1);
+    }
+    let secs = clock.elapsed().as_secs_f64();
+    black_box(x);
+    secs / LINKS as f64 * 1e9
+}
+
+/// Nanoseconds per dependent load over a working set of `bytes` (a random cycle through one
+/// word per 64-byte line).
+fn latency_ns(bytes: usize) -> f64 {
+    const STRIDE: usize = 64 / std::mem::size_of::<usize>();
+    let lines = bytes / 64;
+    // A random cyclic order of the lines (xorshift; the order only has to defeat prefetching).
+    let mut order: Vec<usize> = (0..lines).collect();
+    let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
+    for i in (1..lines).rev() {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        order.swap(i, (state % (i as u64 + 1)) as usize);
+    }
+    let mut chain = vec![0usize; lines * STRIDE];
+    for k in 0..lines {
+        chain[order[k] * STRIDE] = order[(k + 1) % lines] * STRIDE;
+    }
+    let mut at = order[0] * STRIDE;
+    // Once round the cycle to bring the set in, then timed.
+    for _ in 0..lines {
+        at = chain[at];
+    }
+    let loads = 20_000_000;
+    let clock = Instant::now();
+    for _ in 0..loads {
+        at = chain[at];
+    }
+    let secs = clock.elapsed().as_secs_f64();
+    black_box(at);
+    secs / loads as f64 * 1e9
+}
+
+fn main() {
+    let link = chain_ns();
+    println!(
+        "machine: dependent or-multiply {link:.3} ns (4 cycles on x86-64: {:.2} GHz)",
+        4.0 / link
+    );
+    let cells: Vec<String> = [32 << 10, 512 << 10, 4 << 20, 16 << 20, 64 << 20]
+        .into_iter()
+        .map(|bytes: usize| {
+            let size = match bytes >> 20 {
+                0 => format!("{} KiB", bytes >> 10),
+                mib => format!("{mib} MiB"),
+            };
+            format!("{size} {:.1} ns", latency_ns(bytes))
+        })
+        .collect();
+    println!("machine: load latency by working set: {}", cells.join(", "));
+}
