@@ -2,8 +2,8 @@
 //! compared: the effective clock of one core and the latency of a load that misses each level
 //! of the cache. `make bench` runs it before and after the DEM rows (`pipelines/bench-dem.sh`).
 //!
-//! Why: on the 2-core development VM the same `dem` binary, with the same instruction count
-//! (callgrind), ran 1.7x slower in one session than in the one before, while compute-bound
+//! Why: on the 2-core development VM the same `dem` code, with the same instruction count
+//! (callgrind), ran 1.6-2.2x slower in one session than in the one before, while compute-bound
 //! kernels ran at the same speed (docs/bench.md, "Session 25"). A step of `dem` reads a few MB
 //! to a hundred MB of bodies, contacts and structures, so it is sensitive to how much of the
 //! shared last-level cache the VM's neighbours leave it; these lines say which kind of hour a
