@@ -1,7 +1,7 @@
 # Throughput benchmarks: kernels in process (criterion; one thread), the time step against
 # energy error (benches/timestep.rs, ~2 min), and the tools through the pipe
 # (pipelines/bench.sh), side by side in one run; the DEM rows between two readings of what the
-# machine gives this hour (benches/machine.rs: clock and load latency, 10 s). Results:
+# machine gives this hour (benches/machine.rs: clock and load latency, 8 s). Results:
 # docs/bench.md.
 bench: build
 	cargo bench --locked -p granular-shared --bench geometry -- --noplot 2>&1 \

@@ -16,6 +16,9 @@
 //!   last one ends, so the time per load is the latency of wherever the set lives, page walks
 //!   included).
 
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -40,15 +43,9 @@ fn chain_ns() -> f64 {
 fn latency_ns(bytes: usize) -> f64 {
     const STRIDE: usize = 64 / std::mem::size_of::<usize>();
     let lines = bytes / 64;
-    // A random cyclic order of the lines (xorshift; the order only has to defeat prefetching).
+    // A random cyclic order of the lines (it only has to defeat prefetching).
     let mut order: Vec<usize> = (0..lines).collect();
-    let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
-    for i in (1..lines).rev() {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        order.swap(i, (state % (i as u64 + 1)) as usize);
-    }
+    order.shuffle(&mut ChaCha8Rng::seed_from_u64(25));
     let mut chain = vec![0usize; lines * STRIDE];
     for k in 0..lines {
         chain[order[k] * STRIDE] = order[(k + 1) % lines] * STRIDE;
