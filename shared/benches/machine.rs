@@ -9,6 +9,10 @@
 //! shared last-level cache the VM's neighbours leave it; these lines say which kind of hour a
 //! run was measured in.
 //!
+//! - Processor: the model as the VM reports it (name, family, model and stepping from
+//!   `/proc/cpuinfo`) and its caches (`/sys/devices/system/cpu/cpu0/cache`): the VM may be
+//!   put on another kind of host from one session to the next (docs/bench.md has seen both
+//!   an Intel Xeon and an AMD EPYC), which changes every figure.
 //! - Clock: a chain of dependent integer or-multiplies, timed (4 cycles a link on current
 //!   x86-64 cores, so the line also gives the clock those cores run at).
 //! - Latency: a random cyclic chain of pointers, one per 64-byte line, over a working set of
@@ -65,7 +69,50 @@ fn latency_ns(bytes: usize) -> f64 {
     secs / loads as f64 * 1e9
 }
 
+/// The processor as `/proc/cpuinfo` names it: model name, family, model and stepping of the
+/// first CPU listed ("unknown" for what it does not say).
+fn processor() -> String {
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let field = |key: &str| {
+        info.lines()
+            .filter_map(|line| line.split_once(':'))
+            .find(|(k, _)| k.trim() == key)
+            .map_or_else(|| "unknown".to_string(), |(_, v)| v.trim().to_string())
+    };
+    format!(
+        "{} (family {}, model {}, stepping {})",
+        field("model name"),
+        field("cpu family"),
+        field("model"),
+        field("stepping")
+    )
+}
+
+/// The first CPU's data and unified caches, as "L1d 32K, L2 1024K, L3 32768K (shared by
+/// CPUs 0-1)"; empty when `/sys` does not list them.
+fn caches() -> String {
+    let dir = "/sys/devices/system/cpu/cpu0/cache";
+    let read = |index: usize, name: &str| {
+        std::fs::read_to_string(format!("{dir}/index{index}/{name}"))
+            .map(|s| s.trim().to_string())
+            .ok()
+    };
+    (0..8)
+        .filter_map(|k| {
+            let (level, kind, size) = (read(k, "level")?, read(k, "type")?, read(k, "size")?);
+            let shared = read(k, "shared_cpu_list").unwrap_or_default();
+            match kind.as_str() {
+                "Instruction" => None,
+                "Data" => Some(format!("L{level}d {size}")),
+                _ => Some(format!("L{level} {size} (CPUs {shared})")),
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn main() {
+    println!("machine: {}; caches: {}", processor(), caches());
     let link = chain_ns();
     println!(
         "machine: dependent or-multiply {link:.3} ns (4 cycles on x86-64: {:.2} GHz)",
