@@ -24,16 +24,18 @@ for bin in "$a" "$b"; do
 done
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-# Seconds of `dem`'s own timing line ("N steps of M bodies in T s").
+# Seconds of `dem`'s own timing line ("N steps of M bodies in T s"); the state it wrote is
+# left in $tmp/OUT.
 run() {
-  RAYON_NUM_THREADS=$threads "$1" --renumber --steps "$steps" < "$bed" > "$tmp/out" 2> "$tmp/err"
+  RAYON_NUM_THREADS=$threads "$1" --renumber --steps "$steps" < "$bed" > "$tmp/$2" 2> "$tmp/err"
   sed -n 's/^dem: .* steps of .* bodies in \([0-9.]*\) s.*/\1/p' "$tmp/err"
 }
-RAYON_NUM_THREADS=$threads "$a" --renumber --steps "$steps" < "$bed" 2>/dev/null | md5sum > "$tmp/a.md5"
-RAYON_NUM_THREADS=$threads "$b" --renumber --steps "$steps" < "$bed" 2>/dev/null | md5sum > "$tmp/b.md5"
-cmp -s "$tmp/a.md5" "$tmp/b.md5" || { echo "ab-dem: A and B write different bytes" >&2; exit 1; }
 for k in $(seq "$pairs"); do
-  if [ $((k % 2)) = 1 ]; then ta=$(run "$a"); tb=$(run "$b"); else tb=$(run "$b"); ta=$(run "$a"); fi
+  if [ $((k % 2)) = 1 ]; then ta=$(run "$a" a.out); tb=$(run "$b" b.out); else tb=$(run "$b" b.out); ta=$(run "$a" a.out); fi
+  if [ "$k" = 1 ] && ! cmp -s "$tmp/a.out" "$tmp/b.out"; then
+    echo "ab-dem: A and B write different bytes" >&2
+    exit 1
+  fi
   echo "$ta $tb"
 done > "$tmp/times"
 awk '{ print $2 / $1 }' "$tmp/times" | sort -g > "$tmp/ratios"

@@ -6,8 +6,9 @@
 //! (callgrind), ran 1.6-2.2x slower in one session than in the one before, while compute-bound
 //! kernels ran at the same speed (docs/bench.md, "Session 25"). A step of `dem` reads a few MB
 //! to a hundred MB of bodies, contacts and structures, so it is sensitive to how much of the
-//! shared last-level cache the VM's neighbours leave it; these lines say which kind of hour a
-//! run was measured in.
+//! shared last-level cache the VM's neighbours leave it, and on which processor the VM runs
+//! (session 26 found that session 24's rates needed a faster core than this one's); these
+//! lines say on which host, and in which kind of hour, a run was measured.
 //!
 //! - Processor: the model as the VM reports it (name, family, model and stepping from
 //!   `/proc/cpuinfo`) and its caches (`/sys/devices/system/cpu/cpu0/cache`): the VM may be
@@ -88,8 +89,8 @@ fn processor() -> String {
     )
 }
 
-/// The first CPU's data and unified caches, as "L1d 32K, L2 1024K, L3 32768K (shared by
-/// CPUs 0-1)"; empty when `/sys` does not list them.
+/// The first CPU's data and unified caches, as "L1d 32K, L2 1024K (CPUs 0), L3 32768K
+/// (CPUs 0-1)" (with the CPUs sharing each); empty when `/sys` does not list them.
 fn caches() -> String {
     let dir = "/sys/devices/system/cpu/cpu0/cache";
     let read = |index: usize, name: &str| {
