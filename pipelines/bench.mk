@@ -1,8 +1,8 @@
 # Throughput benchmarks: kernels in process (criterion; one thread), the time step against
 # energy error (benches/timestep.rs, ~2 min), and the tools through the pipe
 # (pipelines/bench.sh), side by side in one run; the DEM rows between two readings of what the
-# machine gives this hour (benches/machine.rs: clock and load latency, 8 s). Results:
-# docs/bench.md.
+# machine gives this hour (benches/machine.rs: clock and load latency, 8 s), with the price of
+# facet walls against planes on the 2000 I_P bed (benches/walls.rs). Results: docs/bench.md.
 bench: build
 	cargo bench --locked -p granular-shared --bench geometry -- --noplot 2>&1 \
 	  | awk '/^geometry\// {name=$$0} /thrpt:/ && name {print name " " $$0; name=""}'
@@ -12,4 +12,6 @@ bench: build
 	pipelines/bench.sh
 	cargo bench --locked -p granular-shared --bench machine
 	pipelines/bench-dem.sh
+	if [ -f out/bench/nine2000.jsonl ]; then \
+	  cargo bench --locked -p granular-shared --bench walls -- $(CURDIR)/out/bench/nine2000.jsonl; fi
 	cargo bench --locked -p granular-shared --bench machine

@@ -18,10 +18,7 @@ use std::time::Instant;
 /// sides, so that a body in a corner meets the same side as the plane's) and above the
 /// highest body.
 fn faceted(w: &World, grid: usize) -> Result<World, String> {
-    let top = (w.bodies.iter())
-        .map(|b| b.pos.z)
-        .fold(0.0f64, f64::max)
-        * 1.5;
+    let top = (w.bodies.iter()).map(|b| b.pos.z).fold(0.0f64, f64::max) * 1.5;
     let mut out = w.clone();
     for k in 1..=4 {
         let WallKind::Plane { normal, offset } = w.walls[k].kind else {
@@ -81,14 +78,18 @@ fn run(w: &World, steps: usize) -> (f64, Vec<Vec3>) {
 }
 
 fn main() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| a != "--bench")
+        .collect();
     let Some(bed) = args.first() else {
         eprintln!("walls: no bed given (usage: walls BED.jsonl [STEPS [GRID]]); skipped");
         return Ok(());
     };
     let number = |k: usize, default: usize| -> Result<usize, String> {
         args.get(k).map_or(Ok(default), |s| {
-            s.parse().map_err(|_| format!("walls: '{s}' is not a count"))
+            s.parse()
+                .map_err(|_| format!("walls: '{s}' is not a count"))
         })
     };
     let (steps, grid) = (number(1, 200)?, number(2, 24)?);

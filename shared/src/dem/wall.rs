@@ -27,6 +27,7 @@
 //! the facets within reach of a body are built. Each spot's normal is the radius through its
 //! centroid, so that it makes no moment about the axis.
 
+use super::broad::overlap as overlap_boxes;
 use super::overlap::{
     overlap_half_space_kept, overlap_half_space_within, overlap_parts, reach_along, Beyond,
     Overlap, WallFound,
@@ -185,6 +186,15 @@ impl Wall {
         }
     }
 
+    /// [`Wall::may_touch`], with the wall's [`FacetGrid`] when it has one (made for bodies
+    /// as large as this one at least): false for facets none of whose prisms is near the box.
+    pub fn may_touch_body(&self, lo: &Vec3, hi: &Vec3, grid: Option<&FacetGrid>) -> bool {
+        match grid {
+            Some(g) if matches!(self.kind, WallKind::Facets { .. }) => g.any_near(lo, hi),
+            _ => self.may_touch(lo, hi),
+        }
+    }
+
     /// The contact of body `b` (shape `s`, bounding radius `radius`) with this wall.
     pub fn touch(&self, s: &Shape, b: &Posed, radius: f64) -> Option<WallHit> {
         self.touch_kept(s, b, radius, None).map(|(hit, _)| hit)
@@ -199,6 +209,21 @@ impl Wall {
         b: &Posed,
         radius: f64,
         kept: Option<&[u32]>,
+    ) -> Option<(WallHit, WallFound)> {
+        self.touch_indexed(s, b, radius, kept, None)
+    }
+
+    /// [`Wall::touch_kept`], to the bit, with `grid` the wall's [`FacetGrid`] (facets only;
+    /// made since its nodes last moved, for bodies as large as this one at least): only the
+    /// triangles near the body are tested, where without it every body reaching the wall
+    /// tests all of them.
+    pub fn touch_indexed(
+        &self,
+        s: &Shape,
+        b: &Posed,
+        radius: f64,
+        kept: Option<&[u32]>,
+        grid: Option<&FacetGrid>,
     ) -> Option<(WallHit, WallFound)> {
         let hit = match &self.kind {
             WallKind::Plane { normal, offset } => {
@@ -221,7 +246,14 @@ impl Wall {
                 let misses =
                     |lo: &Vec3, hi: &Vec3| (0..3).any(|k| lo[k] > b.hi[k] || b.lo[k] > hi[k]);
                 let reach = Vec3::repeat(2.0 * radius);
-                for t in triangles {
+                // The triangles whose prisms' boxes may meet the body's (all of them without a
+                // grid), ascending: a superset of those that pass the quick rejects below, so
+                // the same pieces in the same order.
+                let near = match grid {
+                    Some(g) => g.near(&b.lo, &b.hi),
+                    None => (0..triangles.len() as u32).collect(),
+                };
+                for t in near.iter().map(|&k| &triangles[k as usize]) {
                     let q = t.map(|i| nodes[i as usize]);
                     // Quick reject: the prism's box misses the body's box (first the triangle's
                     // box grown by the prism's depth every way, then the prism's own).
@@ -475,6 +507,155 @@ impl Wall {
     }
 }
 
+/// The triangles of a facet wall by cell of a uniform grid over their prisms' boxes (for the
+/// deepest prism of the scene's bodies), so that a body tests only the triangles near it (a
+/// box's sides as 4 x 1 152 facets, tested by every body that reached the wall, made the 2000
+/// I_P bed's steps 20x dearer: `benches/walls.rs`). Made anew whenever the nodes move: it costs
+/// a pass over the triangles.
+#[derive(Clone, Debug)]
+pub struct FacetGrid {
+    /// Each triangle's prism's box (see [`FacetGrid::of`]).
+    boxes: Vec<(Vec3, Vec3)>,
+    /// All triangles' box.
+    bounds: (Vec3, Vec3),
+    cells: Cells,
+    /// Cell `c`'s triangles are `ids[start[c]..start[c + 1]]`, ascending.
+    start: Vec<u32>,
+    ids: Vec<u32>,
+}
+
+impl FacetGrid {
+    /// The grid of a facet wall's triangles for bodies of bounding radius `radius` at most;
+    /// `None` for other walls, or a wall of no triangles. Each triangle is listed by the box of
+    /// its prism for a body of that radius (extruded by `2 radius` against its normal, as
+    /// [`Wall::touch`] takes it), grown a little for round-off: a body's prism of a triangle
+    /// lies within it.
+    pub fn of(wall: &Wall, radius: f64) -> Option<FacetGrid> {
+        let WallKind::Facets {
+            nodes, triangles, ..
+        } = &wall.kind
+        else {
+            return None;
+        };
+        let boxes: Vec<(Vec3, Vec3)> = (triangles.iter())
+            .map(|t| {
+                let q = t.map(|i| nodes[i as usize]);
+                let (lo, hi) = (q[0].inf(&q[1]).inf(&q[2]), q[0].sup(&q[1]).sup(&q[2]));
+                let n = (q[1] - q[0]).cross(&(q[2] - q[0])).normalize();
+                let back = -n * (2.0 * radius);
+                let (lo, hi) = (lo.inf(&(lo + back)), hi.sup(&(hi + back)));
+                let size = lo.abs().sup(&hi.abs()).max();
+                let pad = Vec3::repeat(1e-9 * radius + 1e-12 * size);
+                (lo - pad, hi + pad)
+            })
+            .collect();
+        let lo = boxes.iter().map(|b| b.0).reduce(|a, b| a.inf(&b))?;
+        let hi = boxes.iter().map(|b| b.1).reduce(|a, b| a.sup(&b))?;
+        // Cells about a triangle's size, and at most a few per triangle.
+        let n = boxes.len();
+        let side = boxes.iter().map(|b| (b.1 - b.0).max()).sum::<f64>() / n as f64;
+        let extent = hi - lo;
+        let count = |cell: f64| extent.map(|e| ((e / cell).floor() as usize + 1).min(1 << 20));
+        let mut cell = side.max(extent.max() * 1e-6).max(f64::MIN_POSITIVE);
+        let most = 4 * n + 64;
+        let cells = |c: f64| count(c).iter().product::<usize>();
+        while cells(cell) > most {
+            cell *= 1.5;
+        }
+        let d = count(cell);
+        let dims = [d.x, d.y, d.z];
+        let cells = Cells { lo, cell, dims };
+        // Counted, then placed: each cell's triangles in ascending order.
+        let mut start = vec![0u32; dims.iter().product::<usize>() + 1];
+        for b in &boxes {
+            cells.each(&b.0, &b.1, |c| start[c + 1] += 1);
+        }
+        for c in 1..start.len() {
+            start[c] += start[c - 1];
+        }
+        let mut at = start.clone();
+        let mut ids = vec![0; *start.last().expect("a cell") as usize];
+        for (k, b) in boxes.iter().enumerate() {
+            cells.each(&b.0, &b.1, |c| {
+                ids[at[c] as usize] = k as u32;
+                at[c] += 1;
+            });
+        }
+        Some(FacetGrid {
+            boxes,
+            bounds: (lo, hi),
+            cells,
+            start,
+            ids,
+        })
+    }
+
+    /// The triangles listed in cell `c`.
+    fn listed(&self, c: usize) -> &[u32] {
+        &self.ids[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+
+    /// The triangles whose prisms' boxes may overlap the box `lo`, `hi` (of a body no larger
+    /// than the grid was made for), ascending.
+    pub fn near(&self, lo: &Vec3, hi: &Vec3) -> Vec<u32> {
+        let mut out = Vec::new();
+        let b = (*lo, *hi);
+        if !overlap_boxes(&b, &self.bounds) {
+            return out;
+        }
+        self.cells.each(lo, hi, |c| {
+            let meets = |&&k: &&u32| overlap_boxes(&self.boxes[k as usize], &b);
+            out.extend(self.listed(c).iter().filter(meets));
+        });
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    /// Whether [`FacetGrid::near`] would find any triangle.
+    pub fn any_near(&self, lo: &Vec3, hi: &Vec3) -> bool {
+        let b = (*lo, *hi);
+        if !overlap_boxes(&b, &self.bounds) {
+            return false;
+        }
+        let mut any = false;
+        self.cells.each(lo, hi, |c| {
+            let meets = |&k: &u32| overlap_boxes(&self.boxes[k as usize], &b);
+            any = any || self.listed(c).iter().any(meets);
+        });
+        any
+    }
+}
+
+/// A uniform grid of cubes of side `cell`, `dims` of them along x, y, z from `lo`.
+#[derive(Clone, Copy, Debug)]
+struct Cells {
+    lo: Vec3,
+    cell: f64,
+    dims: [usize; 3],
+}
+
+impl Cells {
+    /// Calls `f` with each cell the box `lo`, `hi` overlaps (clamped to the grid).
+    fn each(&self, lo: &Vec3, hi: &Vec3, mut f: impl FnMut(usize)) {
+        let at = |x: f64, k: usize| {
+            let c = ((x - self.lo[k]) / self.cell).floor();
+            (c.max(0.0) as usize).min(self.dims[k] - 1)
+        };
+        let (a, b) = (
+            [0, 1, 2].map(|k| at(lo[k], k)),
+            [0, 1, 2].map(|k| at(hi[k], k)),
+        );
+        for z in a[2]..=b[2] {
+            for y in a[1]..=b[1] {
+                for x in a[0]..=b[0] {
+                    f((z * self.dims[1] + y) * self.dims[0] + x);
+                }
+            }
+        }
+    }
+}
+
 /// Sums facet pieces into one overlap.
 #[derive(Default)]
 struct Sum {
@@ -673,6 +854,85 @@ mod tests {
             out > 50 && touching > 50,
             "{out} ruled out, {touching} touching"
         );
+    }
+
+    /// A tube of facets around the z axis, its nodes jittered (no two triangles alike, none
+    /// flat with its neighbours), facing in.
+    fn bumpy_tube(around: usize, rings: usize, rng: &mut impl rand::RngCore) -> Wall {
+        let mut jitter = || 0.1 * (crate::math::unit_f64(rng.next_u64()) - 0.5);
+        let mut nodes = Vec::new();
+        for h in 0..=rings {
+            for a in 0..around {
+                let t = std::f64::consts::TAU * (a as f64 + jitter()) / around as f64;
+                let r = 1.0 + jitter();
+                nodes.push(Vec3::new(
+                    r * t.cos(),
+                    r * t.sin(),
+                    h as f64 * 0.3 + jitter(),
+                ));
+            }
+        }
+        let id = |a: usize, h: usize| (h * around + a % around) as u32;
+        let mut tris = Vec::new();
+        for h in 0..rings {
+            for a in 0..around {
+                tris.push([id(a, h), id(a, h + 1), id(a + 1, h + 1)]);
+                tris.push([id(a, h), id(a + 1, h + 1), id(a + 1, h)]);
+            }
+        }
+        Wall::facets(nodes, tris)
+    }
+
+    /// The grid the step uses changes no facet contact, to the bit, and rules out only bodies
+    /// that touch nothing: bodies from 1/50 to the size of the tube's triangles, in and across
+    /// its surface and its floor's, the grid made for the largest of them.
+    #[test]
+    fn a_facet_grid_changes_no_contact_and_rules_out_only_bodies_that_touch_nothing() {
+        use rand::{RngCore, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut u = move || crate::math::unit_f64(rng.next_u64());
+        let mut tube_rng = rand_chacha::ChaCha8Rng::seed_from_u64(6);
+        let s = Shape::from_mesh(&cube(0.5)).unwrap();
+        let scales = [0.02, 0.1, 0.3];
+        let largest = s.radius * 0.3;
+        for wall in [bumpy_tube(24, 8, &mut tube_rng), floor(7)] {
+            let grid = FacetGrid::of(&wall, largest).expect("a facet wall has a grid");
+            let tube = matches!(&wall.kind, WallKind::Facets { nodes, .. } if nodes.len() > 100);
+            let (mut touching, mut out) = (0, 0);
+            for k in 0..3000 {
+                let scale = scales[k % 3];
+                // Near the tube's surface (or the floor), up to a few sizes in or out.
+                let at = if tube {
+                    let (t, r) = (u() * std::f64::consts::TAU, 1.0 + 0.4 * (u() - 0.5));
+                    Vec3::new(r * t.cos(), r * t.sin(), 2.6 * u() - 0.1)
+                } else {
+                    Vec3::new(5.0 * u() - 2.5, 5.0 * u() - 2.5, 0.4 * (u() - 0.5))
+                };
+                let turn = UnitQuaternion::from_euler_angles(7.0 * u(), 7.0 * u(), 7.0 * u());
+                let b = s.posed(&at, &turn, scale);
+                let r = s.radius * scale;
+                let all = wall.touch_kept(&s, &b, r, None);
+                let near = wall.touch_indexed(&s, &b, r, None, Some(&grid));
+                match (&all, &near) {
+                    (None, None) => {}
+                    (Some((x, _)), Some((y, _))) => {
+                        assert_eq!(x.overlap, y.overlap, "pose {k}");
+                        assert_eq!(x.node_weights, y.node_weights, "pose {k}");
+                        assert_eq!((x.velocity, x.couple), (y.velocity, y.couple), "pose {k}");
+                    }
+                    _ => panic!("pose {k}: with the grid {}", near.is_some()),
+                }
+                touching += usize::from(all.is_some());
+                if !wall.may_touch_body(&b.lo, &b.hi, Some(&grid)) {
+                    assert!(all.is_none(), "pose {k}: ruled out, yet touching");
+                    out += 1;
+                }
+            }
+            assert!(
+                touching > 300 && out > 300,
+                "{touching} touching, {out} ruled out: too few to test"
+            );
+        }
     }
 
     /// A floor z = 0 of two triangles over [-2, 2]^2, or of many small ones.

@@ -32,7 +32,7 @@ use super::overlap::{
 use super::shape::{motion_bound, Posed, Remade, Shape};
 use super::spread::spread;
 use super::structure::Structure;
-use super::wall::Wall;
+use super::wall::{FacetGrid, Wall, WallKind};
 use crate::math::{cube, pow5, Vec3};
 use nalgebra::UnitQuaternion;
 use rayon::prelude::*;
@@ -609,7 +609,11 @@ impl World {
     /// made in the same pass (a serial pass over the posed bodies for the boxes and over
     /// walls x boxes for the walls took 2.5 % of a step of the 2000 I_P bed on 2 threads, and
     /// let the other thread fall asleep twice a step).
-    fn pose_all(&self, posed: &mut Vec<Posed>) -> (Vec<Aabb>, Vec<u64>) {
+    fn pose_all(
+        &self,
+        posed: &mut Vec<Posed>,
+        grids: &[Option<FacetGrid>],
+    ) -> (Vec<Aabb>, Vec<u64>) {
         posed.resize_with(self.bodies.len(), Posed::default);
         // Large hulls are posed lazily while their shapes' vertices stay in cache.
         let large: usize = (self.shapes.iter())
@@ -619,9 +623,12 @@ impl World {
         let lazy = large <= LAZY_HULLS_MAX_BYTES;
         let walls = &self.walls;
         let pose = |(b, p): (&Body, &mut Posed)| -> (Aabb, u64) {
-            self.shapes[b.shape as usize].pose_for_contacts(&b.pos, &b.rot, b.scale, p, lazy);
-            let reach = (walls.iter().enumerate())
-                .filter(|(w, wall)| *w >= 64 || wall.may_touch(&p.lo, &p.hi))
+            let shape = &self.shapes[b.shape as usize];
+            shape.pose_for_contacts(&b.pos, &b.rot, b.scale, p, lazy);
+            let reach = (walls.iter().zip(grids).enumerate())
+                .filter(|(w, (wall, grid))| {
+                    *w >= 64 || wall.may_touch_body(&p.lo, &p.hi, grid.as_ref())
+                })
                 .fold(0u64, |bits, (w, _)| bits | 1 << w.min(63));
             ((p.lo, p.hi), reach)
         };
@@ -729,7 +736,16 @@ impl World {
         let mut posed = std::mem::take(&mut self.posed);
         let par = parallel(self.bodies.len());
         let _awake = par.then(Awake::new);
-        let (boxes, reach) = self.pose_all(&mut posed);
+        // Facet walls' triangles by place, for this step's nodes and the largest body.
+        let faceted = (self.walls.iter()).any(|w| matches!(w.kind, WallKind::Facets { .. }));
+        let largest = (self.bodies.iter())
+            .filter(|_| faceted)
+            .map(|b| self.shapes[b.shape as usize].radius * b.scale)
+            .fold(0.0, f64::max);
+        let grids: Vec<Option<FacetGrid>> = (self.walls.iter())
+            .map(|w| FacetGrid::of(w, largest))
+            .collect();
+        let (boxes, reach) = self.pose_all(&mut posed, &grids);
         let mut broad = std::mem::take(&mut self.broad);
         let (pairs, swept) = broad.candidates(&boxes, par);
         let mut gaps = std::mem::take(&mut self.separations);
@@ -902,7 +918,9 @@ impl World {
                     };
                     let kept = kept.map(|k| k.words());
                     let radius = shape.radius * b.scale;
-                    let (hit, found) = wall.touch_kept(shape, &posed[i as usize], radius, kept)?;
+                    let grid = grids[w as usize].as_ref();
+                    let (hit, found) =
+                        wall.touch_indexed(shape, &posed[i as usize], radius, kept, grid)?;
                     let (mut contact, t) = this.touch(
                         key,
                         last,
