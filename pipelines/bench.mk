@@ -13,5 +13,5 @@ bench: build
 	cargo bench --locked -p granular-shared --bench machine
 	pipelines/bench-dem.sh
 	if [ -f out/bench/nine2000.jsonl ]; then \
-	  cargo bench --locked -p granular-shared --bench walls -- $(CURDIR)/out/bench/nine2000.jsonl; fi
+	  cargo bench --locked -p granular-shared --bench walls -- out/bench/nine2000.jsonl; fi
 	cargo bench --locked -p granular-shared --bench machine

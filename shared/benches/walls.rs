@@ -93,7 +93,17 @@ fn main() -> Result<(), String> {
         })
     };
     let (steps, grid) = (number(1, 200)?, number(2, 24)?);
-    let file = std::fs::File::open(bed).map_err(|e| format!("walls: {bed}: {e}"))?;
+    // `cargo bench` runs in shared/: a relative path is also looked for from the workspace.
+    let path = std::path::Path::new(bed);
+    let from_root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(bed);
+    let path = if path.is_relative() && !path.exists() {
+        from_root.as_path()
+    } else {
+        path
+    };
+    let file = std::fs::File::open(path).map_err(|e| format!("walls: {bed}: {e}"))?;
     let mut planes = read_world(std::io::BufReader::new(file)).map_err(|e| e.to_string())?;
     planes.renumber_along_space();
     let facets = faceted(&planes, grid)?;
