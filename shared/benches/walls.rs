@@ -19,6 +19,12 @@ use std::time::Instant;
 /// highest body.
 fn faceted(w: &World, grid: usize) -> Result<World, String> {
     let top = (w.bodies.iter()).map(|b| b.pos.z).fold(0.0f64, f64::max) * 1.5;
+    if w.walls.len() < 5 {
+        return Err(format!(
+            "walls: the bed has {} walls, not a box's floor and four sides",
+            w.walls.len()
+        ));
+    }
     let mut out = w.clone();
     for k in 1..=4 {
         let WallKind::Plane { normal, offset } = w.walls[k].kind else {
