@@ -8,7 +8,7 @@
 //!     cargo bench -p granular-shared --bench walls -- out/bench/nine2000.jsonl [STEPS [GRID]]
 
 use shared::dem::state::read_world;
-use shared::dem::wall::{Wall, WallKind};
+use shared::dem::wall::{grid_triangles, Wall, WallKind};
 use shared::dem::world::{on_pool, World};
 use shared::math::Vec3;
 use std::time::Instant;
@@ -50,14 +50,7 @@ fn faceted(w: &World, grid: usize) -> Result<World, String> {
             .flat_map(|h| (0..=grid).map(move |a| (a, h)))
             .map(|(a, h)| node(a, h))
             .collect();
-        let at = |a: usize, h: usize| (h * (grid + 1) + a) as u32;
-        let mut triangles = Vec::new();
-        for h in 0..grid {
-            for a in 0..grid {
-                triangles.push([at(a, h), at(a + 1, h), at(a + 1, h + 1)]);
-                triangles.push([at(a, h), at(a + 1, h + 1), at(a, h + 1)]);
-            }
-        }
+        let mut triangles = grid_triangles(grid, grid);
         // Counter-clockwise seen from the particles' side: flip where the normal disagrees.
         let [a, b, c] = triangles[0].map(|i| nodes[i as usize]);
         if (b - a).cross(&(c - a)).dot(&normal) < 0.0 {

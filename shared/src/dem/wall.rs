@@ -178,46 +178,29 @@ impl Wall {
     }
 
     /// False when nothing within the box `lo`, `hi` can touch this wall (a plane: the box is
-    /// wholly outside it; [`Wall::touch`] then gives no contact for a body of that box).
-    pub fn may_touch(&self, lo: &Vec3, hi: &Vec3) -> bool {
-        match &self.kind {
-            WallKind::Plane { normal, offset } => box_excess(&-normal, -offset, lo, hi) > 0.0,
+    /// wholly outside it; facets, with their [`FacetGrid`] (made for bodies as large as this
+    /// one at least): none of their prisms is near the box; [`Wall::touch`] then gives no
+    /// contact for a body of that box).
+    pub fn may_touch(&self, lo: &Vec3, hi: &Vec3, grid: Option<&FacetGrid>) -> bool {
+        match (&self.kind, grid) {
+            (WallKind::Plane { normal, offset }, _) => box_excess(&-normal, -offset, lo, hi) > 0.0,
+            (WallKind::Facets { .. }, Some(g)) => g.any_near(lo, hi),
             _ => true,
-        }
-    }
-
-    /// [`Wall::may_touch`], with the wall's [`FacetGrid`] when it has one (made for bodies
-    /// as large as this one at least): false for facets none of whose prisms is near the box.
-    pub fn may_touch_body(&self, lo: &Vec3, hi: &Vec3, grid: Option<&FacetGrid>) -> bool {
-        match grid {
-            Some(g) if matches!(self.kind, WallKind::Facets { .. }) => g.any_near(lo, hi),
-            _ => self.may_touch(lo, hi),
         }
     }
 
     /// The contact of body `b` (shape `s`, bounding radius `radius`) with this wall.
     pub fn touch(&self, s: &Shape, b: &Posed, radius: f64) -> Option<WallHit> {
-        self.touch_kept(s, b, radius, None).map(|(hit, _)| hit)
+        self.touch_kept(s, b, radius, None, None)
+            .map(|(hit, _)| hit)
     }
 
     /// [`Wall::touch`], to the bit, trying the wall set `kept` the contact made last step (a
     /// plane's contact with a large hull: [`overlap_half_space_kept`]) and handing back the
-    /// set to keep.
+    /// set to keep. With `grid`, a facet wall's [`FacetGrid`] (made since its nodes last
+    /// moved, for bodies as large as this one at least), only the triangles near the body are
+    /// tested; without it, all of them.
     pub fn touch_kept(
-        &self,
-        s: &Shape,
-        b: &Posed,
-        radius: f64,
-        kept: Option<&[u32]>,
-    ) -> Option<(WallHit, WallFound)> {
-        self.touch_indexed(s, b, radius, kept, None)
-    }
-
-    /// [`Wall::touch_kept`], to the bit, with `grid` the wall's [`FacetGrid`] (facets only;
-    /// made since its nodes last moved, for bodies as large as this one at least): only the
-    /// triangles near the body are tested, where without it every body reaching the wall
-    /// tests all of them.
-    pub fn touch_indexed(
         &self,
         s: &Shape,
         b: &Posed,
@@ -516,6 +499,22 @@ impl Wall {
             }
         }
     }
+}
+
+/// The triangles of a grid of `cols` x `rows` squares whose `(cols + 1) x (rows + 1)` nodes
+/// are numbered row by row: two to a square, counter-clockwise when the rows run
+/// counter-clockwise from the columns.
+pub fn grid_triangles(cols: usize, rows: usize) -> Vec<[u32; 3]> {
+    let id = |i: usize, j: usize| (j * (cols + 1) + i) as u32;
+    (0..rows)
+        .flat_map(|j| (0..cols).map(move |i| (i, j)))
+        .flat_map(|(i, j)| {
+            [
+                [id(i, j), id(i + 1, j), id(i + 1, j + 1)],
+                [id(i, j), id(i + 1, j + 1), id(i, j + 1)],
+            ]
+        })
+        .collect()
 }
 
 /// The triangles of a facet wall by cell of a uniform grid over their prisms' boxes (for the
@@ -900,7 +899,7 @@ mod tests {
             let turn = UnitQuaternion::from_euler_angles(7.0 * t, 3.0 * t, -2.0 * t);
             let b = s.posed(&at, &turn, 1.0);
             let hit = wall.touch(&s, &b, s.radius).is_some();
-            if !wall.may_touch(&b.lo, &b.hi) {
+            if !wall.may_touch(&b.lo, &b.hi, None) {
                 assert!(!hit, "pose {k}: ruled out, yet touching");
                 out += 1;
             }
@@ -1018,8 +1017,8 @@ mod tests {
                 let turn = UnitQuaternion::from_euler_angles(7.0 * u(), 7.0 * u(), 7.0 * u());
                 let b = s.posed(&at, &turn, scale);
                 let r = s.radius * scale;
-                let all = wall.touch_kept(&s, &b, r, None);
-                let near = wall.touch_indexed(&s, &b, r, None, Some(&grid));
+                let all = wall.touch_kept(&s, &b, r, None, None);
+                let near = wall.touch_kept(&s, &b, r, None, Some(&grid));
                 match (&all, &near) {
                     (None, None) => {}
                     (Some((x, _)), Some((y, _))) => {
@@ -1030,7 +1029,7 @@ mod tests {
                     _ => panic!("pose {k}: with the grid {}", near.is_some()),
                 }
                 touching += usize::from(all.is_some());
-                if !wall.may_touch_body(&b.lo, &b.hi, Some(&grid)) {
+                if !wall.may_touch(&b.lo, &b.hi, Some(&grid)) {
                     assert!(all.is_none(), "pose {k}: ruled out, yet touching");
                     out += 1;
                 }
@@ -1051,15 +1050,7 @@ mod tests {
                 nodes.push(Vec3::new(-2.0 + i as f64 * h, -2.0 + j as f64 * h, 0.0));
             }
         }
-        let id = |i: usize, j: usize| (j * (cells + 1) + i) as u32;
-        let mut tris = Vec::new();
-        for j in 0..cells {
-            for i in 0..cells {
-                tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
-        Wall::facets(nodes, tris)
+        Wall::facets(nodes, grid_triangles(cells, cells))
     }
 
     #[test]

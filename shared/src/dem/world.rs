@@ -626,9 +626,7 @@ impl World {
             let shape = &self.shapes[b.shape as usize];
             shape.pose_for_contacts(&b.pos, &b.rot, b.scale, p, lazy);
             let reach = (walls.iter().zip(grids).enumerate())
-                .filter(|(w, (wall, grid))| {
-                    *w >= 64 || wall.may_touch_body(&p.lo, &p.hi, grid.as_ref())
-                })
+                .filter(|(w, (wall, grid))| *w >= 64 || wall.may_touch(&p.lo, &p.hi, grid.as_ref()))
                 .fold(0u64, |bits, (w, _)| bits | 1 << w.min(63));
             ((p.lo, p.hi), reach)
         };
@@ -920,7 +918,7 @@ impl World {
                     let radius = shape.radius * b.scale;
                     let grid = grids[w as usize].as_ref();
                     let (hit, found) =
-                        wall.touch_indexed(shape, &posed[i as usize], radius, kept, grid)?;
+                        wall.touch_kept(shape, &posed[i as usize], radius, kept, grid)?;
                     let (mut contact, t) = this.touch(
                         key,
                         last,
