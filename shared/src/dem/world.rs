@@ -323,6 +323,22 @@ struct WallExtra {
     at: usize,
 }
 
+/// A run of wall contacts' part of the contact list, and their touches.
+type WallChunk = (Part, Vec<(Touch, WallExtra)>);
+
+/// An item of a step's narrow phase: a chunk of body pairs with their gap slots, or a run of
+/// (body, wall) pairs.
+enum Work<'a> {
+    Pairs(&'a [(u32, u32)], &'a mut [Option<Gap>]),
+    Walls(&'a [(u32, u32)]),
+}
+
+/// What an item of [`Work`] gives.
+enum Done {
+    Pairs(Chunk),
+    Walls(WallChunk),
+}
+
 /// [`World::alternates`]: by body pair, the shapes and the structure.
 type Alternates = std::collections::HashMap<(u32, u32), ([u32; 2], Structure)>;
 
@@ -863,19 +879,6 @@ impl World {
                 sums,
             }
         };
-        const CHUNK: usize = 256;
-        let gaps_out = &mut gaps.0;
-        let mut pair_touches = move || -> Vec<Chunk> {
-            if par {
-                let items = pairs.chunks(CHUNK).zip(gaps_out.chunks_mut(CHUNK));
-                spread(items.collect(), true, chunk)
-            } else {
-                (pairs.chunks(CHUNK))
-                    .zip(gaps_out.chunks_mut(CHUNK))
-                    .map(chunk)
-                    .collect()
-            }
-        };
         let this = &*self;
         // By wall, then body: the order of the contact keys, so the touches come out sorted.
         // (A body still adds its wall contacts by ascending wall, as each wall its bodies.)
@@ -890,12 +893,8 @@ impl World {
                     .map(move |(i, _)| (i as u32, w as u32))
             })
             .collect();
-        // The wall contacts in one serial loop, beside the body pairs' (which need the same
-        // last contacts and poses only): split among threads, each took twice as long (on
-        // the 2000 I_P bed, 0.44 us a contact on one thread; the poses and bodies they read
-        // were in the other core's cache half the time), and on their own they left the
-        // other thread idle.
-        let wall_touches = || -> (Part, Vec<(Touch, WallExtra)>) {
+        // A run of wall contacts: its part of the contact list, and the touches.
+        let wall_touches = |wall_pairs: &[(u32, u32)]| -> WallChunk {
             let mut part = buffers_ref.take_part(Buffers::slot(threads));
             // The keys ascend, so one cursor walks the last list's wall contacts.
             let mut at = (wall_pairs.first()).map_or_else(Cursor::default, |&(i, w)| {
@@ -946,19 +945,51 @@ impl World {
                 .collect();
             (part, touches)
         };
-        let (mut chunks, (wall_part, wall_touches)) = if par {
-            rayon::join(pair_touches, wall_touches)
+        // The body pairs in chunks, then the wall contacts, all spread over the threads (the
+        // other thread starts from the back: the walls). Plane and cylinder walls are one
+        // serial run: split among threads, each contact took twice as long (on the 2000 I_P
+        // bed, 0.44 us a contact on one thread; the poses and bodies they read were in the
+        // other core's cache half the time). A facet wall's contact costs tens of times that
+        // (each triangle near the body cut from it), so with facet walls the wall contacts
+        // come in short runs that either thread takes: in one run, they held the step up
+        // while the other thread waited (100 steps of the 2000 I_P bed with its sides as
+        // facets, 2 threads: 0.77-0.78 s in one run, 0.63-0.67 s in runs of 8).
+        const CHUNK: usize = 256;
+        const FACET_CHUNK: usize = 8;
+        let wall_chunk = if grids.iter().any(Option::is_some) {
+            FACET_CHUNK
         } else {
-            (pair_touches(), wall_touches())
+            wall_pairs.len().max(1)
         };
+        let items: Vec<Work> = (pairs.chunks(CHUNK).zip(gaps.0.chunks_mut(CHUNK)))
+            .map(|(p, g)| Work::Pairs(p, g))
+            .chain(wall_pairs.chunks(wall_chunk).map(Work::Walls))
+            .collect();
+        let work = |item: Work| match item {
+            Work::Pairs(p, g) => Done::Pairs(chunk((p, g))),
+            Work::Walls(w) => Done::Walls(wall_touches(w)),
+        };
+        let (mut chunks, mut wall_parts, mut wall_touches) = (Vec::new(), Vec::new(), Vec::new());
+        for done in spread(items, par, work) {
+            match done {
+                Done::Pairs(c) => chunks.push(c),
+                Done::Walls((part, touches)) => {
+                    wall_parts.push(part);
+                    wall_touches.extend(touches);
+                }
+            }
+        }
         self.broad = broad;
         self.separations = gaps;
         // The contact list is made of the chunks' parts, as they are.
         let mut parts: Vec<Part> = (chunks.iter_mut())
             .map(|c| std::mem::take(&mut c.part))
             .collect();
-        let wall_keys = wall_part.keys().to_vec();
-        parts.push(wall_part);
+        let wall_keys: Vec<ContactKey> = (wall_parts.iter())
+            .flat_map(|p| p.keys().iter().copied())
+            .collect();
+        let pair_parts = parts.len();
+        parts.extend(wall_parts);
         let mut touches: Vec<&Touch> = chunks.iter().flat_map(|c| &c.touches).collect();
         touches.extend(wall_touches.iter().map(|(t, _)| t));
         self.times.narrow += lap();
@@ -1065,7 +1096,7 @@ impl World {
             for c in chunks.iter() {
                 sums.merge(&c.sums);
             }
-            let wall_contacts = parts.last().map_or(&[][..], |p| p.values());
+            let wall_contacts = parts[pair_parts..].iter().flat_map(|p| p.values());
             for (((t, x), c), key) in wall_touches.iter().zip(wall_contacts).zip(&wall_keys) {
                 sums.add(c, t, material);
                 if let Partner::Wall(w) = key.0 {
