@@ -155,6 +155,8 @@ struct Scratch {
     /// A wall set's vertices (world) and their heights ([`overlap_half_space_kept`]).
     set_points: Vec<Vec3>,
     set_heights: Vec<f64>,
+    /// A face behind a facet cut by the facet's side planes ([`overlap_behind_facet`]).
+    sides_clip: Clip,
 }
 
 /// One body's vertices along the slab's axis, facing the other body: heights `sign n . v`
@@ -822,39 +824,19 @@ pub fn overlap_half_space_within(
     };
     let within = SCRATCH.with_borrow_mut(|sc| {
         let Scratch {
-            clip: Clip {
-                poly, tmp, dist, ..
-            },
+            clip,
             side_b,
             faces_b,
             ..
         } = sc;
-        // B's vertices inside the wall (n . v <= d), found from the lowest one (a climb for a
-        // large hull), and the faces around them, ascending: the faces that reach the wall.
-        if side_b.climb_to_top(sb, b, n, -1.0) <= -d {
-            return true; // every vertex above the plane
-        }
-        side_b.reach_down_to(sb, b, n, -1.0, -d);
-        faces_around(sb, &side_b.reach, faces_b);
-        for &f in faces_b.iter() {
-            // The face clipped to the wall as `clip` would, from the vertices and their
-            // heights the walk computed (each vertex is on about six faces).
-            poly.clear();
-            dist.clear();
-            for &i in sb.face(f as usize) {
-                let (v, height) = side_b.point(sb, b, n, -1.0, i as usize);
-                poly.push(v);
-                dist.push(-height - d);
+        each_face_behind(clip, side_b, faces_b, sb, b, n, d, |poly| {
+            // The clipped faces hold every vertex of the part inside the wall.
+            if (sides.iter()).any(|(m, e)| poly.iter().any(|x| m.dot(x) > *e)) {
+                return false;
             }
-            if clip_with(poly, tmp, dist) {
-                // The clipped faces hold every vertex of the part inside the wall.
-                if (sides.iter()).any(|(m, e)| poly.iter().any(|x| m.dot(x) > *e)) {
-                    return false;
-                }
-                let _ = acc.piece(poly, true);
-            }
-        }
-        true
+            let _ = acc.piece(poly, true);
+            true
+        })
     });
     if !within {
         return Err(Beyond);
@@ -869,6 +851,121 @@ pub fn overlap_half_space_within(
         centroid,
         area_b: -n * cap,
     }))
+}
+
+/// Hands `piece` each face of B that reaches into the half-space `n . x <= d`, clipped to it
+/// (counter-clockwise seen from outside B), in ascending face order: with the cap on the plane
+/// these bound B's part inside. The vertices inside are found from the lowest one (a climb for
+/// a large hull), and each face is clipped from the heights the walk computed (each vertex is
+/// on about six faces). Stops, false, when `piece` says false; true when B lies wholly above.
+#[allow(clippy::too_many_arguments)]
+fn each_face_behind(
+    clip: &mut Clip,
+    side_b: &mut Side,
+    faces_b: &mut Vec<u32>,
+    sb: &Shape,
+    b: &Posed,
+    n: &Vec3,
+    d: f64,
+    mut piece: impl FnMut(&[Vec3]) -> bool,
+) -> bool {
+    let Clip {
+        poly, tmp, dist, ..
+    } = clip;
+    if side_b.climb_to_top(sb, b, n, -1.0) <= -d {
+        return true; // every vertex above the plane
+    }
+    side_b.reach_down_to(sb, b, n, -1.0, -d);
+    faces_around(sb, &side_b.reach, faces_b);
+    for &f in faces_b.iter() {
+        poly.clear();
+        dist.clear();
+        for &i in sb.face(f as usize) {
+            let (v, height) = side_b.point(sb, b, n, -1.0, i as usize);
+            poly.push(v);
+            dist.push(-height - d);
+        }
+        if clip_with(poly, tmp, dist) && !piece(poly) {
+            return false;
+        }
+    }
+    true
+}
+
+/// B's overlap with the prism behind a convex facet: the part of B in the half-space
+/// `n . x <= d` (`n` the facet's unit normal) that lies within the facet's side planes
+/// `m . x <= e` (`sides`, each perpendicular to the facet): volume, centroid and the cap (the
+/// facet's area inside B, along `n`); `None` when they do not meet. The same overlap as
+/// clipping B by the prism ([`overlap_parts`] with the prism as A), for less: only B's faces
+/// that reach behind the plane are read, each clipped by the side planes, and the pieces the
+/// side planes would add are never made. By the divergence theorem with fields along `n`
+/// (`h n` and `h y - h^2 n / 2`, `h` the height `n . y` above the plane, `y` from a point on
+/// it), faces perpendicular to the facet (the side cuts) and the cap (h = 0) add nothing, so
+/// the volume and moment are sums over B's clipped faces alone, each fan triangle weighted by
+/// its area projected on the facet.
+pub fn overlap_behind_facet(
+    sb: &Shape,
+    b: &Posed,
+    n: &Vec3,
+    d: f64,
+    sides: &[(Vec3, f64)],
+) -> Option<(f64, Vec3, Vec3)> {
+    // Quick reject: the box above the plane.
+    if box_excess(&-n, -d, &b.lo, &b.hi) <= 0.0 {
+        return None;
+    }
+    // Sums about a point on the plane near the part (its first vertex moved onto the plane), so
+    // that each term is of the overlap's size: 6 V, 24 x the moment (as `Acc`), 2 x the
+    // projected area of the faces (minus the cap's).
+    let mut origin: Option<Vec3> = None;
+    let (mut volume6, mut moment24, mut area2) = (0.0, Vec3::zeros(), 0.0);
+    SCRATCH.with_borrow_mut(|sc| {
+        let Scratch {
+            clip: walk,
+            side_b,
+            faces_b,
+            sides_clip,
+            ..
+        } = sc;
+        let Clip {
+            poly: cut,
+            tmp,
+            dist,
+            ..
+        } = sides_clip;
+        each_face_behind(walk, side_b, faces_b, sb, b, n, d, |poly| {
+            cut.clear();
+            cut.extend_from_slice(poly);
+            if !(sides.iter()).all(|(m, e)| clip(cut, tmp, dist, m, *e)) {
+                return true; // none of this face lies within the facet
+            }
+            let o = *origin.get_or_insert_with(|| cut[0] - n * (n.dot(&cut[0]) - d));
+            let y0 = cut[0] - o;
+            let h0 = n.dot(&y0);
+            for k in 1..cut.len() - 1 {
+                let (y1, y2) = (cut[k] - o, cut[k + 1] - o);
+                let (h1, h2) = (n.dot(&y1), n.dot(&y2));
+                // Twice the triangle's area projected on the facet, signed by its facing.
+                let p = n.dot(&(y1 - y0).cross(&(y2 - y0)));
+                let hs = h0 + h1 + h2;
+                volume6 += p * hs;
+                // 12 x the mean of h y over the triangle, and of h^2.
+                let hy = y0 * h0 + y1 * h1 + y2 * h2 + (y0 + y1 + y2) * hs;
+                let hh = h0 * h0 + h1 * h1 + h2 * h2 + hs * hs;
+                moment24 += (hy - n * (hh / 2.0)) * p;
+                area2 += p;
+            }
+            true
+        });
+    });
+    let o = origin?;
+    // B's faces below face away from the facet (p < 0, h < 0): the sums come out positive.
+    if volume6.is_nan() || volume6 <= 0.0 {
+        return None;
+    }
+    let volume = volume6 / 6.0;
+    let centroid = o + moment24 / (4.0 * volume6);
+    Some((volume, centroid, n * (-area2 / 2.0)))
 }
 
 /// How far above a plane wall a large hull's kept wall set reaches, as a fraction of the
