@@ -342,22 +342,29 @@ impl Wall {
                     return None;
                 }
                 let theta = cy.atan2(cx);
-                let (mut lo_angle, mut hi_angle) = (0.0f64, 0.0f64);
-                for (x, y) in corners {
-                    let delta = (cx * y - cy * x).atan2(cx * x + cy * y);
-                    lo_angle = lo_angle.min(delta);
-                    hi_angle = hi_angle.max(delta);
-                }
-                let (first, last) = if hi_angle - lo_angle < std::f64::consts::FRAC_PI_2
-                    && hi_angle < std::f64::consts::FRAC_PI_2
-                    && lo_angle > -std::f64::consts::FRAC_PI_2
-                {
-                    (
+                // The angles about the box centre's that hold the facets to test (relative to
+                // `theta`), or None for all of them.
+                let window = if s.climb.is_none() {
+                    reached_angles(s, b, &flat, inscribed, step)
+                } else {
+                    let (mut lo_angle, mut hi_angle) = (0.0f64, 0.0f64);
+                    for (x, y) in corners {
+                        let delta = (cx * y - cy * x).atan2(cx * x + cy * y);
+                        lo_angle = lo_angle.min(delta);
+                        hi_angle = hi_angle.max(delta);
+                    }
+                    let narrow = hi_angle - lo_angle < std::f64::consts::FRAC_PI_2
+                        && hi_angle < std::f64::consts::FRAC_PI_2
+                        && lo_angle > -std::f64::consts::FRAC_PI_2;
+                    Some(narrow.then_some((lo_angle, hi_angle)))
+                };
+                let (first, last) = match window {
+                    None => return None,
+                    Some(Some((lo_angle, hi_angle))) => (
                         ((theta + lo_angle) / step).floor() as i64,
                         ((theta + hi_angle) / step).floor() as i64,
-                    )
-                } else {
-                    (0, n_seg as i64 - 1)
+                    ),
+                    Some(None) => (0, n_seg as i64 - 1),
                 };
                 let count = ((last - first + 1) as usize).min(n_seg);
                 // Corner j of the polygon at the tube's foot, the same bits whichever window asks
@@ -694,6 +701,49 @@ impl Sum {
             area_b: -self.cap,
         })
     }
+}
+
+/// The angles (about the axis, relative to `theta`, the angle of the body's box centre) of the
+/// facets of a cylinder that a small body may reach: `Some(Some((lo, hi)))`, `Some(None)` for
+/// all facets, `None` for none. `flat` gives a point's coordinates across the axis, `inscribed`
+/// is the facets' distance from the axis and `step` their angle. A facet's plane touches the
+/// inscribed circle at the facet's middle, so a vertex at distance `rho > inscribed` and angle
+/// `phi` is beyond the plane of the facet whose middle is at `psi` only when
+/// `|phi - psi| < acos(inscribed / rho)`, and no vertex inside the inscribed circle is beyond
+/// any; a convex body reaches past a plane only with a vertex. The window is that of the
+/// vertices outside, widened by a facet each way (whose exact test, `reach_along`, then
+/// decides): it replaces the box's, whose corners' angles took in 3-10 facets of a 128-facet
+/// tube that each cost a scan of the body's vertices.
+fn reached_angles(
+    s: &Shape,
+    b: &Posed,
+    flat: &impl Fn(&Vec3) -> (f64, f64),
+    inscribed: f64,
+    step: f64,
+) -> Option<Option<(f64, f64)>> {
+    let (cx, cy) = flat(&((b.lo + b.hi) * 0.5));
+    let limit = inscribed * (1.0 - 1e-9);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..b.vertex_count(s) {
+        let (x, y) = flat(&b.vertex(s, i));
+        let rho = x.hypot(y);
+        if rho <= limit {
+            continue;
+        }
+        // The vertex's angle from the box centre's, and the half-width of the facet middles
+        // whose planes it may be beyond.
+        let delta = (cx * y - cy * x).atan2(cx * x + cy * y);
+        let half = (limit / rho).acos();
+        lo = lo.min(delta - half);
+        hi = hi.max(delta + half);
+    }
+    if lo > hi {
+        return None;
+    }
+    // Facet middles in [lo, hi]: the facets that hold those angles, and one more each way.
+    let (lo, hi) = (lo - step, hi + step);
+    let narrow = hi - lo < std::f64::consts::PI;
+    Some(narrow.then_some((lo, hi)))
 }
 
 /// For triangles given by their node indices: each one's component label (the smallest index of
