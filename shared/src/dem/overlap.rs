@@ -20,7 +20,7 @@
 //! only the planes of the other body that cut the box are applied.
 
 use super::gjk::{separating_gap, Hints, Points};
-use super::shape::{motion_bound_tight, Posed, Shape};
+use super::shape::{motion_bound, Posed, Shape};
 use super::structure::{
     discover, join, pose_of, pose_words, split, Packed, Pair, Structure, POSE_WORDS,
 };
@@ -1132,7 +1132,7 @@ fn wall_set(sb: &Shape, b: &Posed, n: &Vec3, d: f64, band: f64) -> Option<Vec<u3
 
 /// True when the wall set `w` still holds for the body posed `b` (bounding radius `radius`)
 /// against the plane `n . x = d`: the same scale and normal, and the body's motion since
-/// ([`motion_bound_tight`]) plus the plane's less than the band (by a thousandth of it, far
+/// ([`motion_bound`]) plus the plane's less than the band (by a thousandth of it, far
 /// above the round-off of the heights).
 fn wall_set_holds(w: &[u32], b: &Posed, n: &Vec3, d: f64, radius: f64) -> bool {
     if w.len() < WALL_SET_HEAD {
@@ -1143,7 +1143,7 @@ fn wall_set_holds(w: &[u32], b: &Posed, n: &Vec3, d: f64, radius: f64) -> bool {
     if scale != b.scale || Vec3::new(x(0), x(1), x(2)) != *n {
         return false;
     }
-    let moved = motion_bound_tight((&pos, &rot), (&b.pos, &b.orientation), radius);
+    let moved = motion_bound((&pos, &rot), (&b.pos, &b.orientation), radius);
     let band = x(4);
     moved + (d - x(3)).abs() < 0.999 * band
 }

@@ -507,6 +507,7 @@ impl Shape {
         out.orientation = *rot;
         out.pos = *pos;
         out.scale = scale;
+        out.travel = None;
         out.vertices.clear();
         if vertices {
             out.vertices
@@ -602,6 +603,10 @@ pub struct Posed {
     /// A large hull posed lazily: the vertices its box's six climbs ended at (highest and
     /// lowest along x, y, z), where the next pose's climbs start.
     pub tops: Option<[u32; 6]>,
+    /// The body's odometer when posed, if it has one (the world's bodies do; [`Travel`]), by
+    /// which kept structures tell the motion since they were found. `None` (each pose makes
+    /// it so) counts as unknown motion.
+    pub travel: Option<Travel>,
 }
 
 impl Posed {
@@ -641,26 +646,47 @@ impl Posed {
     }
 }
 
+/// An odometer reading: a bound on how far any point of a body has moved since a reading of 0,
+/// as the sum of each step's [`motion_bound`] in units of [`TRAVEL_UNIT`], each rounded up.
+/// Whole units make the difference of two readings exact: as sums of floats, readings of a
+/// metre apart a million steps would have lost ~1e-10 m to rounding, more than the margins
+/// (1e-9 of a particle's size) that the bounds are checked against. [`TRAVEL_UNKNOWN`] (also
+/// where the sum runs out of range, at 16 km) reads as no bound.
+pub type Travel = u64;
+
+/// The unit of [`Travel`], m: 2^-50 (8.9e-16 m).
+pub const TRAVEL_UNIT: f64 = 1.0 / (1u64 << 50) as f64;
+
+/// A reading of an unknown odometer.
+pub const TRAVEL_UNKNOWN: Travel = u64::MAX;
+
+/// Reading `t` after a motion of bound `bound`, m (rounded up to whole units).
+pub fn travel_after(t: Travel, bound: f64) -> Travel {
+    let units = (bound / TRAVEL_UNIT).ceil();
+    // A NaN motion, or one beyond the range, is no bound.
+    let in_range = units < (TRAVEL_UNKNOWN - t) as f64;
+    if t == TRAVEL_UNKNOWN || units.is_nan() || !in_range {
+        return TRAVEL_UNKNOWN;
+    }
+    t + units as u64
+}
+
+/// A bound on how far any point of a body has moved, m, between odometer readings `from` and
+/// `to` (infinite when either is unknown, or `to` comes before `from`).
+pub fn travelled(from: Travel, to: Travel) -> f64 {
+    if from == TRAVEL_UNKNOWN || to == TRAVEL_UNKNOWN || to < from {
+        return f64::INFINITY;
+    }
+    // Up by a part in 2^52, over the conversion's rounding.
+    (to - from) as f64 * TRAVEL_UNIT * (1.0 + f64::EPSILON)
+}
+
 /// A bound on how far any point within `radius` of a body's centroid can be from where it was
 /// when the body's centroid was at `from.0` with orientation `from.1`, now that they are `to`:
 /// the centroid's displacement plus the chord of the rotation between, `2 r sin(theta / 2)`,
-/// which is `2 r` times the length of the vector part of `to.1 from.1^-1`; both lengths taken as
-/// the sums of their components' magnitudes (at most sqrt 3 times more, and no square roots on
-/// the gap proofs' per-pair path, where a looser bound costs little: [`motion_bound_tight`]).
+/// which is `2 r` times the length of the vector part of `to.1 from.1^-1`. A step's bound is
+/// what a body's odometer adds (see the world's `Odometer`).
 pub fn motion_bound(
-    from: (&Vec3, &UnitQuaternion<f64>),
-    to: (&Vec3, &UnitQuaternion<f64>),
-    radius: f64,
-) -> f64 {
-    let (shift, turn) = motion(from, to);
-    shift.lp_norm(1) + 2.0 * radius * turn.lp_norm(1)
-}
-
-/// [`motion_bound`] with the lengths themselves (Euclidean): the bound the kept structures'
-/// corner budgets are spent against. There every bit of slack shortens how long a budget
-/// lasts on a creeping bed, and two square roots a pair are far cheaper than the corner
-/// checks a looser bound brings forward.
-pub fn motion_bound_tight(
     from: (&Vec3, &UnitQuaternion<f64>),
     to: (&Vec3, &UnitQuaternion<f64>),
     radius: f64,
@@ -695,6 +721,29 @@ mod tests {
     /// A large hull posed for contacts leaves its vertices out: each one computed when asked
     /// for must be the full pose's to the bit, and its box (by climbing) must hold the full
     /// pose's, by no more than its padding.
+    /// Odometer readings are whole units: a metre on, a million steps of 1e-13 m read back as
+    /// 1e-7 m to the unit (as floats each step's sum would round by ~1e-16 m), never less than
+    /// the motion; unknown readings, a reading out of range and a motion of NaN read as no bound.
+    #[test]
+    fn odometer_readings_differ_exactly() {
+        let start = travel_after(0, 1.0);
+        let mut t = start;
+        for _ in 0..1_000_000 {
+            t = travel_after(t, 1e-13);
+        }
+        let step = (1e-13 / TRAVEL_UNIT).ceil() as u64;
+        assert_eq!(t - start, 1_000_000 * step);
+        let moved = travelled(start, t);
+        assert!(moved >= 1e-7 && moved < 1e-7 * (1.0 + 1e-2), "{moved}");
+        assert_eq!(travelled(t, t), 0.0);
+        for (from, to) in [(TRAVEL_UNKNOWN, t), (start, TRAVEL_UNKNOWN), (t, start)] {
+            assert_eq!(travelled(from, to), f64::INFINITY, "{from} {to}");
+        }
+        assert_eq!(travel_after(t, 1e5), TRAVEL_UNKNOWN, "16 km on");
+        assert_eq!(travel_after(t, f64::NAN), TRAVEL_UNKNOWN);
+        assert_eq!(travel_after(TRAVEL_UNKNOWN, 0.0), TRAVEL_UNKNOWN);
+    }
+
     #[test]
     fn a_large_hull_posed_for_contacts_gives_the_full_poses_numbers() {
         use crate::polygen::{generate, Params};

@@ -34,7 +34,7 @@
 //! construction of [`super::overlap`] handles them, every step.
 
 use super::overlap::{set_bits, Acc, Overlap};
-use super::shape::{motion_bound_tight, Posed, Shape, CLIMB_MIN};
+use super::shape::{travelled, Posed, Shape, Travel, CLIMB_MIN, TRAVEL_UNKNOWN};
 use crate::math::Vec3;
 use nalgebra::UnitQuaternion;
 
@@ -114,8 +114,9 @@ const HEADER: usize = 4 + 2 + 1;
 /// not fit the 15 bits a structure gives them): their overlaps are clipped every step.
 pub const INDEX_LIMIT: usize = 1 << 15;
 
-/// Words of `found_at`: 2 poses ([`pose_words`]).
-const FOUND_AT: usize = 2 * POSE_WORDS;
+/// Words of `found_at`: the two bodies' odometer readings ([`Posed::travel`]), 2 words each.
+/// (They were the two poses, 32 words, 40 % of an I_P contact's structure.)
+const FOUND_AT: usize = 4;
 
 /// The parts of a structure, as [`discover`] makes them.
 #[derive(Default)]
@@ -132,8 +133,9 @@ struct Parts {
     /// ... and the least clearance (distance inside) they had from all the other planes, when
     /// found (those are covered by the motion since); infinite without such corners.
     clearance: f64,
-    /// Where the bodies were when it was found: centroid, orientation, scale.
-    found_at: [(Vec3, UnitQuaternion<f64>, f64); 2],
+    /// The bodies' odometers when it was found ([`Posed::travel`]; [`TRAVEL_UNKNOWN`] for
+    /// none).
+    found_at: [Travel; 2],
     /// Per corner, how far the bodies may move from `found_at` before it must be checked
     /// again ([`Pair::budget`], rounded down; 0: checked at every step).
     budgets: Vec<f32>,
@@ -247,18 +249,12 @@ impl<'a> Pair<'a> {
         inside.then_some(far)
     }
 
-    /// The sum of the two bodies' [`motion_bound_tight`]s since `found_at` (for any point within
-    /// their bounding spheres); infinite when a scale changed.
-    fn moved_since(&self, found_at: &[(Vec3, UnitQuaternion<f64>, f64); 2]) -> f64 {
+    /// A bound on how far any point of either body has moved since their odometers read
+    /// `found_at` (the sum of the two travels since, [`Posed::travel`]); infinite when an
+    /// odometer is missing.
+    fn moved_since(&self, found_at: [Travel; 2]) -> f64 {
         (0..2)
-            .map(|k| {
-                let (p, (pos, rot, scale)) = (self.posed[k], &found_at[k]);
-                if p.scale != *scale {
-                    return f64::INFINITY;
-                }
-                let radius = self.shapes[k].radius * p.scale;
-                motion_bound_tight((pos, rot), (&p.pos, &p.orientation), radius)
-            })
+            .map(|k| travelled(found_at[k], self.posed[k].travel.unwrap_or(TRAVEL_UNKNOWN)))
             .sum()
     }
 
@@ -327,7 +323,7 @@ impl<'a> Pair<'a> {
         }
     }
 
-    /// How far the two bodies may move (the sum of their [`motion_bound_tight`]s) from these poses
+    /// How far the two bodies may move (the sum of their [`motion_bound`]s) from these poses
     /// before corner `c` (checked here by [`Pair::corner`]) may fail its checks: 0 when it is
     /// checked every step anyway (against a large body: a vertex inside one has its own
     /// budgets, see [`NEAR_REL`]). On the 2000 I_P bed at rest 95 % of vertex corners and 85 %
@@ -783,7 +779,7 @@ fn discover_with(
 /// near planes put least clearance first and each corner's budget and `found_at` from
 /// `pair`'s poses: the last step of [`discover`] and of [`Packed::renewed`].
 fn seal(pair: &Pair, parts: &mut Parts) -> Structure {
-    let at = |p: &Posed| (p.pos, p.orientation, p.scale);
+    let at = |p: &Posed| p.travel.unwrap_or(TRAVEL_UNKNOWN);
     // Least first (see `Packed::evaluate`), ties by corner and face.
     (parts.near).sort_unstable_by(|x, y| x.2.total_cmp(&y.2).then((x.0, x.1).cmp(&(y.0, y.1))));
     parts.budgets.clear();
@@ -823,8 +819,8 @@ pub(super) fn split(x: f64) -> [u32; 2] {
 /// Words of a [`pose_words`] pose: 8 numbers of 2 words.
 pub(super) const POSE_WORDS: usize = 16;
 
-/// Where a body is (centroid, orientation, scale), as [`POSE_WORDS`] words (a kept structure's
-/// `found_at`, a wall set's pose), read back by [`pose_of`].
+/// Where a body is (centroid, orientation, scale), as [`POSE_WORDS`] words (a kept
+/// wall set's pose), read back by [`pose_of`].
 pub(super) fn pose_words(
     pos: &Vec3,
     rot: &UnitQuaternion<f64>,
@@ -873,8 +869,8 @@ impl Structure {
         ]);
         w.extend(split(p.clearance));
         w.push(u32::from(found_at > 0));
-        for (pos, rot, scale) in p.found_at.iter().filter(|_| found_at > 0) {
-            w.extend(pose_words(pos, rot, *scale));
+        for &travel in p.found_at.iter().filter(|_| found_at > 0) {
+            w.extend([travel as u32, (travel >> 32) as u32]);
         }
         if found_at > 0 {
             let budget = |k: usize| p.budgets.get(k).copied().unwrap_or(0.0);
@@ -922,6 +918,12 @@ impl Structure {
 thread_local! {
     static CORNERS: std::cell::RefCell<Vec<Vec3>> = std::cell::RefCell::default();
     static RENEWING: std::cell::RefCell<Parts> = std::cell::RefCell::default();
+}
+
+/// The two odometer readings of `found_at`'s words.
+fn travels(w: &[u32]) -> [Travel; 2] {
+    let t = |k: usize| u64::from(w[k]) | u64::from(w[k + 1]) << 32;
+    [t(0), t(2)]
 }
 
 /// The number that [`split`] gave the words `w[0]`, `w[1]` of.
@@ -1007,8 +1009,7 @@ impl<'a> Packed<'a> {
         let mut moved = f64::INFINITY;
         let mut renew = false;
         if !s.found_at.is_empty() {
-            let found_at = [pose_of(s.found_at), pose_of(&s.found_at[POSE_WORDS..])];
-            moved = pair.moved_since(&found_at);
+            moved = pair.moved_since(travels(s.found_at));
             if s.clearance.is_finite() && moved >= s.clearance - pair.margin {
                 // Every corner checked (no budget covers this motion either), and the
                 // vertices afresh by `renewed`.
@@ -1115,6 +1116,7 @@ impl<'a> Packed<'a> {
 #[cfg(test)]
 mod tests {
     use super::super::overlap::{overlap_kept, overlap_kept_or, overlap_parts, Found};
+    use super::super::shape::{motion_bound, travel_after};
     use super::*;
     use crate::math::unit_f64;
     use crate::mesh::cube;
@@ -1148,16 +1150,37 @@ mod tests {
 
     /// Random overlapping poses of two shapes: A at the origin, B along a random direction at a
     /// fraction `reach` of the sum of their radii (0.8 to 1: shallow to medium overlaps).
+    /// `s` posed at `pos`, `rot` with an odometer as the world keeps one: 0 at a first pose,
+    /// else `from`'s reading plus the bound of the motion from it ([`motion_bound`]).
+    fn on_odometer(
+        s: &Shape,
+        from: Option<&Posed>,
+        pos: &Vec3,
+        rot: &UnitQuaternion<f64>,
+    ) -> Posed {
+        let mut p = s.posed(pos, rot, 1.0);
+        p.travel = Some(from.map_or(0, |f| {
+            let moved = motion_bound((&f.pos, &f.orientation), (pos, rot), s.radius);
+            travel_after(f.travel.unwrap(), moved)
+        }));
+        p
+    }
+
     fn poses(rng: &mut impl RngCore, count: usize) -> Vec<(usize, usize, Posed, Posed)> {
         let shapes = shapes();
         let mut out = Vec::new();
         while out.len() < count {
             let k = out.len();
             let (i, j) = (k % shapes.len(), (k / shapes.len()) % shapes.len());
-            let a = shapes[i].posed(&Vec3::zeros(), &rotation(rng, 3.2), 1.0);
+            let a = on_odometer(&shapes[i], None, &Vec3::zeros(), &rotation(rng, 3.2));
             let reach =
                 (0.55 + 0.45 * unit_f64(rng.next_u64())) * (shapes[i].radius + shapes[j].radius);
-            let b = shapes[j].posed(&(direction(rng) * reach), &rotation(rng, 3.2), 1.0);
+            let b = on_odometer(
+                &shapes[j],
+                None,
+                &(direction(rng) * reach),
+                &rotation(rng, 3.2),
+            );
             if overlap_parts(&shapes[i], &a, &shapes[j], &b, &(b.pos - a.pos)).is_some() {
                 out.push((i, j, a, b));
             }
@@ -1257,7 +1280,7 @@ mod tests {
             let step = sb.radius * 10f64.powf(-4.0 + 3.0 * unit_f64(rng.next_u64()));
             let q =
                 rotation(&mut rng, step / sb.radius) * UnitQuaternion::from_rotation_matrix(&b.rot);
-            let moved = sb.posed(&(b.pos + direction(&mut rng) * step), &q, 1.0);
+            let moved = on_odometer(sb, Some(b), &(b.pos + direction(&mut rng) * step), &q);
             let axis = moved.pos - a.pos;
             let fresh = overlap_kept(sa, a, sb, &moved, &axis, None, true);
             let kept = overlap_kept(sa, a, sb, &moved, &axis, Some(s.packed()), true);
@@ -1359,13 +1382,9 @@ mod tests {
         let axis = direction(rng);
         let sine = 0.9 * budget * (1.0 - share) / (2.0 * sb.radius * axis.norm());
         let turn = UnitQuaternion::new(axis * (2.0 * sine.min(1.0).asin()));
-        let moved = sb.posed(&(b.pos + shift), &(turn * b.orientation), 1.0);
-        let found = [
-            (a.pos, a.orientation, a.scale),
-            (b.pos, b.orientation, b.scale),
-        ];
+        let moved = on_odometer(sb, Some(b), &(b.pos + shift), &(turn * b.orientation));
         let now = Pair::new(sa, a, sb, &moved).unwrap();
-        let bound = now.moved_since(&found);
+        let bound = now.moved_since([a.travel.unwrap(), b.travel.unwrap()]);
         assert!(bound <= budget, "motion {bound} over the budget {budget}");
         assert!(
             now.corner(c).is_some(),
@@ -1489,9 +1508,9 @@ mod tests {
         sa: &Shape,
         sb: &Shape,
     ) -> (Posed, Posed, Vec3, UnitQuaternion<f64>) {
-        let a = sa.posed(&Vec3::zeros(), &rotation(rng, 3.2), 1.0);
+        let a = on_odometer(sa, None, &Vec3::zeros(), &rotation(rng, 3.2));
         let (dir, q) = (direction(rng), rotation(rng, 3.2));
-        let at = |d: f64| sb.posed(&(dir * d), &q, 1.0);
+        let at = |d: f64| on_odometer(sb, None, &(dir * d), &q);
         let (mut lo, mut hi) = (0.0, sa.radius + sb.radius);
         for _ in 0..50 {
             let mid = 0.5 * (lo + hi);
@@ -1518,6 +1537,11 @@ mod tests {
             let (sa, sb) = (&shapes[t % 3], &shapes[(t / 3) % 3]);
             let (a1, b1, d1, _) = thin_contact(&mut rng, sa, sb);
             let (a2, b2, d2, _) = thin_contact(&mut rng, sa, sb);
+            // The same two bodies at the second poses, and then back at the first, their
+            // odometers running on.
+            let on = |s, from, to: &Posed| on_odometer(s, Some(from), &to.pos, &to.orientation);
+            let (a2, b2) = (on(sa, &a1, &a2), on(sb, &b1, &b2));
+            let (a1, b1) = (on(sa, &a2, &a1), on(sb, &b2, &b1));
             let (Some((o1, Found::New(s1))), Some((_, Found::New(s2)))) = (
                 overlap_kept(sa, &a1, sb, &b1, &d1, None, true),
                 overlap_kept(sa, &a2, sb, &b2, &d2, None, true),
@@ -1577,11 +1601,8 @@ mod tests {
             );
             for step in [1e-7, 1e-4] {
                 let turn = rotation(&mut rng, step);
-                let moved = sb.posed(
-                    &(b.pos + direction(&mut rng) * step * sb.radius),
-                    &(turn * q),
-                    1.0,
-                );
+                let at = b.pos + direction(&mut rng) * step * sb.radius;
+                let moved = on_odometer(sb, Some(&b), &at, &(turn * q));
                 let fresh = overlap_kept(sa, &a, sb, &moved, &dir, None, true).map(|f| f.0);
                 let kept =
                     overlap_kept(sa, &a, sb, &moved, &dir, Some(s.packed()), true).map(|k| k.0);
@@ -1619,7 +1640,7 @@ mod tests {
             for step in [1e-7, 1e-5, 1e-4] {
                 let turn = rotation(&mut rng, step);
                 let at = b.pos + direction(&mut rng) * step * sb.radius;
-                let moved = sb.posed(&at, &(turn * q), 1.0);
+                let moved = on_odometer(sb, Some(&b), &at, &(turn * q));
                 let pair = Pair::new(sa, &a, sb, &moved).unwrap();
                 let fresh = overlap_kept(sa, &a, sb, &moved, &dir, None, true);
                 let Some((_, Found::New(fresh))) = fresh else {
@@ -1639,12 +1660,8 @@ mod tests {
             // bodies'), so evaluating renews it into the structure found there afresh.
             let shift = direction(&mut rng) * 0.1 * sa.radius;
             let (a2, b2) = (
-                sa.posed(
-                    &(a.pos + shift),
-                    &UnitQuaternion::from_rotation_matrix(&a.rot),
-                    1.0,
-                ),
-                sb.posed(&(b.pos + shift), &q, 1.0),
+                on_odometer(sa, Some(&a), &(a.pos + shift), &a.orientation),
+                on_odometer(sb, Some(&b), &(b.pos + shift), &q),
             );
             let packed = s.packed();
             let w = packed.sections();
@@ -1652,8 +1669,10 @@ mod tests {
                 continue;
             }
             let pair = Pair::new(sa, &a2, sb, &b2).unwrap();
-            let found_at = [pose_of(w.found_at), pose_of(&w.found_at[POSE_WORDS..])];
-            assert!(pair.moved_since(&found_at) >= w.clearance, "trial {t}");
+            assert!(
+                pair.moved_since(travels(w.found_at)) >= w.clearance,
+                "trial {t}"
+            );
             let fresh = overlap_kept(sa, &a2, sb, &b2, &dir, None, true);
             if let (Some((e, again)), Some((o, Found::New(fresh)))) =
                 (packed.evaluate_renewing(&pair), fresh)
