@@ -718,9 +718,6 @@ mod tests {
     use crate::mesh::cube;
     use approx::assert_relative_eq;
 
-    /// A large hull posed for contacts leaves its vertices out: each one computed when asked
-    /// for must be the full pose's to the bit, and its box (by climbing) must hold the full
-    /// pose's, by no more than its padding.
     /// Odometer readings are whole units: a metre on, a million steps of 1e-13 m read back as
     /// 1e-7 m to the unit (as floats each step's sum would round by ~1e-16 m), never less than
     /// the motion; unknown readings, a reading out of range and a motion of NaN read as no bound.
@@ -744,6 +741,9 @@ mod tests {
         assert_eq!(travel_after(TRAVEL_UNKNOWN, 0.0), TRAVEL_UNKNOWN);
     }
 
+    /// A large hull posed for contacts leaves its vertices out: each one computed when asked
+    /// for must be the full pose's to the bit, and its box (by climbing) must hold the full
+    /// pose's, by no more than its padding.
     #[test]
     fn a_large_hull_posed_for_contacts_gives_the_full_poses_numbers() {
         use crate::polygen::{generate, Params};

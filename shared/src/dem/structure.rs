@@ -812,7 +812,11 @@ fn f32_at_most(x: f64) -> f32 {
 
 /// The two words of `x`.
 pub(super) fn split(x: f64) -> [u32; 2] {
-    let bits = x.to_bits();
+    split_bits(x.to_bits())
+}
+
+/// The two words of 64 bits, low first.
+fn split_bits(bits: u64) -> [u32; 2] {
     [bits as u32, (bits >> 32) as u32]
 }
 
@@ -870,7 +874,7 @@ impl Structure {
         w.extend(split(p.clearance));
         w.push(u32::from(found_at > 0));
         for &travel in p.found_at.iter().filter(|_| found_at > 0) {
-            w.extend([travel as u32, (travel >> 32) as u32]);
+            w.extend(split_bits(travel));
         }
         if found_at > 0 {
             let budget = |k: usize| p.budgets.get(k).copied().unwrap_or(0.0);
@@ -922,13 +926,17 @@ thread_local! {
 
 /// The two odometer readings of `found_at`'s words.
 fn travels(w: &[u32]) -> [Travel; 2] {
-    let t = |k: usize| u64::from(w[k]) | u64::from(w[k + 1]) << 32;
-    [t(0), t(2)]
+    [join_bits(w), join_bits(&w[2..])]
 }
 
 /// The number that [`split`] gave the words `w[0]`, `w[1]` of.
 pub(super) fn join(w: &[u32]) -> f64 {
-    f64::from_bits(u64::from(w[0]) | u64::from(w[1]) << 32)
+    f64::from_bits(join_bits(w))
+}
+
+/// The 64 bits that [`split_bits`] gave the words `w[0]`, `w[1]` of.
+fn join_bits(w: &[u32]) -> u64 {
+    u64::from(w[0]) | u64::from(w[1]) << 32
 }
 
 /// A corner from its 2 words.
@@ -1148,8 +1156,6 @@ mod tests {
         Vec3::new(u(), u(), u()).normalize()
     }
 
-    /// Random overlapping poses of two shapes: A at the origin, B along a random direction at a
-    /// fraction `reach` of the sum of their radii (0.8 to 1: shallow to medium overlaps).
     /// `s` posed at `pos`, `rot` with an odometer as the world keeps one: 0 at a first pose,
     /// else `from`'s reading plus the bound of the motion from it ([`motion_bound`]).
     fn on_odometer(
@@ -1166,6 +1172,8 @@ mod tests {
         p
     }
 
+    /// Random overlapping poses of two shapes: A at the origin, B along a random direction at a
+    /// fraction `reach` of the sum of their radii (0.8 to 1: shallow to medium overlaps).
     fn poses(rng: &mut impl RngCore, count: usize) -> Vec<(usize, usize, Posed, Posed)> {
         let shapes = shapes();
         let mut out = Vec::new();

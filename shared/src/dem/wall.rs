@@ -349,7 +349,7 @@ impl Wall {
                 } else {
                     let (mut lo_angle, mut hi_angle) = (0.0f64, 0.0f64);
                     for (x, y) in corners {
-                        let delta = (cx * y - cy * x).atan2(cx * x + cy * y);
+                        let delta = angle_from((cx, cy), (x, y));
                         lo_angle = lo_angle.min(delta);
                         hi_angle = hi_angle.max(delta);
                     }
@@ -703,6 +703,11 @@ impl Sum {
     }
 }
 
+/// The angle of `(x, y)` from `(cx, cy)`, counter-clockwise about the origin, in (-pi, pi].
+fn angle_from((cx, cy): (f64, f64), (x, y): (f64, f64)) -> f64 {
+    (cx * y - cy * x).atan2(cx * x + cy * y)
+}
+
 /// The angles (about the axis, relative to `theta`, the angle of the body's box centre) of the
 /// facets of a cylinder that a small body may reach: `Some(Some((lo, hi)))`, `Some(None)` for
 /// all facets, `None` for none. `flat` gives a point's coordinates across the axis, `inscribed`
@@ -732,7 +737,7 @@ fn reached_angles(
         }
         // The vertex's angle from the box centre's, and the half-width of the facet middles
         // whose planes it may be beyond.
-        let delta = (cx * y - cy * x).atan2(cx * x + cy * y);
+        let delta = angle_from((cx, cy), (x, y));
         let half = (limit / rho).acos();
         lo = lo.min(delta - half);
         hi = hi.max(delta + half);

@@ -29,7 +29,9 @@ use super::gjk::Hints;
 use super::overlap::{
     centre_line, gap_proof, overlap_kept, overlap_kept_or, Found, GapProof, Overlap, WallFound,
 };
-use super::shape::{motion_bound, travel_after, travelled, Posed, Remade, Shape, Travel};
+use super::shape::{
+    motion_bound, travel_after, travelled, Posed, Remade, Shape, Travel, TRAVEL_UNKNOWN,
+};
 use super::spread::spread;
 use super::structure::Structure;
 use super::wall::{FacetGrid, Wall, WallKind};
@@ -842,7 +844,6 @@ impl World {
         self.times.broad += lap();
         // `at`: where this chunk's walk over the contact list is (see `Contacts::seek`).
         // `slot`: the pair's gap proof, kept or made here (a contact leaves none).
-        let odometers = &gaps.odometers;
         let narrow = |&(i, j): &(u32, u32), at: &mut Cursor, slot: &mut Option<Gap>| {
             let (pi, pj) = (&posed[i as usize], &posed[j as usize]);
             if !overlap_boxes(&(pi.lo, pi.hi), &(pj.lo, pj.hi)) {
@@ -852,7 +853,8 @@ impl World {
             // Warm start: the last normal bounds this step's overlap most tightly; a new pair
             // is first tested for a gap, from the direction that proved it last step.
             let last = self.contacts.seek(at, &key);
-            let travel = [odometers[i as usize].travel, odometers[j as usize].travel];
+            // The odometers' readings as the poses carry them (as for the kept structures).
+            let travel = [pi, pj].map(|p| p.travel.unwrap_or(TRAVEL_UNKNOWN));
             if let (None, Some(gap)) = (last, &slot) {
                 // Still apart when the two bodies' travel since the proof is less than its
                 // spare distance: the pair is then more than the proof's margin apart, where
