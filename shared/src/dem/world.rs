@@ -29,9 +29,7 @@ use super::gjk::Hints;
 use super::overlap::{
     centre_line, gap_proof, overlap_kept, overlap_kept_or, Found, GapProof, Overlap, WallFound,
 };
-use super::shape::{
-    motion_bound, travel_after, travelled, Posed, Remade, Shape, Travel, TRAVEL_UNKNOWN,
-};
+use super::shape::{motion_bound, travel_after, travelled, Posed, Remade, Shape, Travel};
 use super::spread::spread;
 use super::structure::Structure;
 use super::wall::{FacetGrid, Wall, WallKind};
@@ -104,10 +102,16 @@ impl Body {
 
     /// Velocity of the material point at world position `p`.
     pub fn velocity_at(&self, p: &Vec3) -> Vec3 {
+        self.velocity_with(&self.omega(), p)
+    }
+
+    /// [`Body::velocity_at`] with the body's angular velocity `omega` ([`Body::omega`]) as
+    /// computed already.
+    fn velocity_with(&self, omega: &Vec3, p: &Vec3) -> Vec3 {
         if self.fixed {
             return Vec3::zeros();
         }
-        self.vel + self.omega().cross(&(p - self.pos))
+        self.vel + omega.cross(&(p - self.pos))
     }
 }
 
@@ -277,6 +281,20 @@ impl PackedHints {
     fn hints(&self) -> Hints {
         self.0.map(|h| (h != u32::MAX).then_some(h as usize))
     }
+}
+
+/// What [`World::pose_all`] gives per body besides its pose, each in a list of its own (the
+/// narrow phase reads them for every pair, most of which never need the pose).
+struct Poses {
+    boxes: Vec<Aabb>,
+    /// The walls each box may touch (bit `w` for wall `w < 64`; walls from 64 on are all
+    /// marked).
+    reach: Vec<u64>,
+    /// The odometer readings ([`Posed::travel`]).
+    travels: Vec<Travel>,
+    /// The angular velocities ([`Body::omega`]): each contact reads two, and computing them
+    /// there (a quaternion turn each way and three divisions) was ~2 % of a step.
+    omegas: Vec<Vec3>,
 }
 
 /// A body's odometer: where it was at the last step, and the sum of each step's motion bound
@@ -677,9 +695,9 @@ impl World {
         )
     }
 
-    /// Poses every body into `posed`, reusing its buffers; returns each body's box and the
-    /// walls that box may touch (bit `w` for wall `w < 64`; walls from 64 on are all marked),
-    /// made in the same pass (a serial pass over the posed bodies for the boxes and over
+    /// Poses every body into `posed`, reusing its buffers; returns each body's box, the
+    /// walls that box may touch, its odometer reading and angular velocity ([`Poses`]), made
+    /// in the same pass (a serial pass over the posed bodies for the boxes and over
     /// walls x boxes for the walls took 2.5 % of a step of the 2000 I_P bed on 2 threads, and
     /// let the other thread fall asleep twice a step).
     fn pose_all(
@@ -687,7 +705,7 @@ impl World {
         posed: &mut Vec<Posed>,
         odometers: &mut [Odometer],
         grids: &[Option<FacetGrid>],
-    ) -> (Vec<Aabb>, Vec<u64>) {
+    ) -> Poses {
         posed.resize_with(self.bodies.len(), Posed::default);
         // Large hulls are posed lazily while their shapes' vertices stay in cache.
         let large: usize = (self.shapes.iter())
@@ -696,7 +714,7 @@ impl World {
             .sum();
         let lazy = large <= LAZY_HULLS_MAX_BYTES;
         let walls = &self.walls;
-        let pose = |((b, p), odometer): ((&Body, &mut Posed), &mut Odometer)| -> (Aabb, u64) {
+        let pose = |((b, p), odometer): ((&Body, &mut Posed), &mut Odometer)| {
             let shape = &self.shapes[b.shape as usize];
             shape.pose_for_contacts(&b.pos, &b.rot, b.scale, p, lazy);
             odometer.advance(b, shape.radius * b.scale);
@@ -704,7 +722,7 @@ impl World {
             let reach = (walls.iter().zip(grids).enumerate())
                 .filter(|(w, (wall, grid))| *w >= 64 || wall.may_touch(&p.lo, &p.hi, grid.as_ref()))
                 .fold(0u64, |bits, (w, _)| bits | 1 << w.min(63));
-            ((p.lo, p.hi), reach)
+            (((p.lo, p.hi), reach), (odometer.travel, b.omega()))
         };
         let blocks = (self.bodies.chunks(POSE_BLOCK))
             .zip(posed.chunks_mut(POSE_BLOCK))
@@ -714,7 +732,15 @@ impl World {
             parallel(self.bodies.len()),
             |((b, p), o)| b.iter().zip(p).zip(o).map(pose).collect::<Vec<_>>(),
         );
-        blocks.into_iter().flatten().unzip()
+        let (boxes_reach, motion): (Vec<_>, Vec<_>) = blocks.into_iter().flatten().unzip();
+        let (boxes, reach) = boxes_reach.into_iter().unzip();
+        let (travels, omegas) = motion.into_iter().unzip();
+        Poses {
+            boxes,
+            reach,
+            travels,
+            omegas,
+        }
     }
 
     /// How many times the broad phase has swept all boxes since this world was made or read
@@ -724,10 +750,12 @@ impl World {
     }
 
     /// Contact forces of one touching pair from its overlap.
-    /// `last`: the contact of `key` last step, if any.
+    /// `omega`: the angular velocity of the key's body; `last`: the contact of `key` last
+    /// step, if any.
     fn touch(
         &self,
         key: ContactKey,
+        omega: &Vec3,
         last: Option<&Contact>,
         o: &Overlap,
         va: Vec3,
@@ -739,7 +767,7 @@ impl World {
         let depth = o.depth();
         let fn_ = m.kn * depth;
         let point = o.centroid;
-        let rel = b.velocity_at(&point) - va;
+        let rel = b.velocity_with(omega, &point) - va;
         let vt = rel - n * n.dot(&rel);
         // Work against the normal force over the step (the mean of the last and this step's
         // force over the contact point's relative displacement), stored as the contact's
@@ -831,7 +859,12 @@ impl World {
             self.contacts.take_kept();
             self.alternates.clear();
         }
-        let (boxes, reach) = self.pose_all(&mut posed, &mut gaps.odometers, &grids);
+        let Poses {
+            boxes,
+            reach,
+            travels,
+            omegas,
+        } = self.pose_all(&mut posed, &mut gaps.odometers, &grids);
         let mut broad = std::mem::take(&mut self.broad);
         let (pairs, swept) = broad.candidates(&boxes, par);
         let mut buffers = std::mem::take(&mut self.buffers);
@@ -845,16 +878,16 @@ impl World {
         // `at`: where this chunk's walk over the contact list is (see `Contacts::seek`).
         // `slot`: the pair's gap proof, kept or made here (a contact leaves none).
         let narrow = |&(i, j): &(u32, u32), at: &mut Cursor, slot: &mut Option<Gap>| {
-            let (pi, pj) = (&posed[i as usize], &posed[j as usize]);
-            if !overlap_boxes(&(pi.lo, pi.hi), &(pj.lo, pj.hi)) {
+            // The boxes and odometer readings from their compact lists: a pair that is not
+            // touching is told so without reading the poses (a line or two each, out of cache).
+            if !overlap_boxes(&boxes[i as usize], &boxes[j as usize]) {
                 return None;
             }
             let key = (Partner::Body(i), j);
             // Warm start: the last normal bounds this step's overlap most tightly; a new pair
             // is first tested for a gap, from the direction that proved it last step.
             let last = self.contacts.seek(at, &key);
-            // The odometers' readings as the poses carry them (as for the kept structures).
-            let travel = [pi, pj].map(|p| p.travel.unwrap_or(TRAVEL_UNKNOWN));
+            let travel = [travels[i as usize], travels[j as usize]];
             if let (None, Some(gap)) = (last, &slot) {
                 // Still apart when the two bodies' travel since the proof is less than its
                 // spare distance: the pair is then more than the proof's margin apart, where
@@ -865,6 +898,7 @@ impl World {
                     return None;
                 }
             }
+            let (pi, pj) = (&posed[i as usize], &posed[j as usize]);
             let (bi, bj) = (&self.bodies[i as usize], &self.bodies[j as usize]);
             if bi.fixed && bj.fixed {
                 return None;
@@ -905,9 +939,10 @@ impl World {
                 }
             }?;
             *slot = None;
-            let va = bi.velocity_at(&o.centroid);
+            let va = bi.velocity_with(&omegas[i as usize], &o.centroid);
             let last = last.map(|(c, _)| c);
-            let (contact, mut touch) = self.touch(key, last, &o, va, self.material.friction);
+            let (contact, mut touch) =
+                self.touch(key, &omegas[j as usize], last, &o, va, self.material.friction);
             // `at` is still where the seek left it: the contact's place, when it had one.
             // Alternates only for large hulls, whose structures cost most to find (for two
             // I_P bodies, keeping and trying them cost more than finding one afresh).
@@ -994,6 +1029,7 @@ impl World {
                         wall.touch_kept(shape, &posed[i as usize], radius, kept, grid)?;
                     let (mut contact, t) = this.touch(
                         key,
+                        &omegas[i as usize],
                         last,
                         &hit.overlap,
                         hit.velocity,
@@ -1011,7 +1047,7 @@ impl World {
                     if hit.couple != Vec3::zeros() {
                         // The spots' moment does work as the body turns (the wall does not).
                         extra.couple = hit.couple * this.material.kn;
-                        contact.potential -= extra.couple.dot(&b.omega()) * this.dt;
+                        contact.potential -= extra.couple.dot(&omegas[i as usize]) * this.dt;
                     }
                     part.push(key, contact);
                     Some((t, extra))
@@ -1113,7 +1149,8 @@ impl World {
                     torque -= arm;
                 }
             }
-            let omega = b.omega();
+            // The body has not moved since it was posed.
+            let omega = omegas[i];
             let (mut f, mut m) = (force, torque);
             let (df, dm) = (
                 local_damping(&f, &b.vel, alpha),
