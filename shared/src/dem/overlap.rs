@@ -38,12 +38,18 @@ pub struct Overlap {
 impl Overlap {
     /// Unit contact normal from A to B.
     pub fn normal(&self) -> Vec3 {
-        -self.area_b / self.area_b.norm()
+        self.normal_depth().0
     }
 
     /// Overlap depth along the normal: `V / |S_B|`.
     pub fn depth(&self) -> f64 {
-        self.volume / self.area_b.norm()
+        self.normal_depth().1
+    }
+
+    /// [`Overlap::normal`] and [`Overlap::depth`], with one `|S_B|` for both.
+    pub fn normal_depth(&self) -> (Vec3, f64) {
+        let area = self.area_b.norm();
+        (-self.area_b / area, self.volume / area)
     }
 }
 
