@@ -29,7 +29,9 @@ use super::gjk::Hints;
 use super::overlap::{
     centre_line, gap_proof, overlap_kept, overlap_kept_or, Found, GapProof, Overlap, WallFound,
 };
-use super::shape::{motion_bound, travel_after, travelled, Posed, Remade, Shape, Travel};
+use super::shape::{
+    motion_bound, travel_after, Posed, Remade, Shape, Travel, TRAVEL_UNIT, TRAVEL_UNKNOWN,
+};
 use super::spread::spread;
 use super::structure::Structure;
 use super::wall::{FacetGrid, Wall, WallKind};
@@ -252,6 +254,12 @@ impl StepTimes {
 #[derive(Clone, Debug, Default)]
 struct Separations {
     slots: Vec<Option<Gap>>,
+    /// Per slot, the largest sum of the two bodies' odometer readings under which its proof
+    /// holds ([`Gap::limit`]), or 0 for none: the one word a step reads for a pair proven
+    /// apart. (The check read the 64-byte slot, which spans two cache lines as often as not:
+    /// the slots of the 5000 I_P bed's ~56 000 pairs, 3.6 MB, were the step's most missed
+    /// loads; the limits are 450 KB.) A slot whose limit is 0 holds no proof.
+    limits: Vec<Travel>,
     /// Per body, where it was at the last step and how far its points may have travelled since
     /// the odometers were set: what the proofs are checked against.
     odometers: Vec<Odometer>,
@@ -272,6 +280,29 @@ struct Gap {
 /// [`Hints`] in 8 bytes rather than 32 (`u32::MAX` for none): with them a gap slot is 64 bytes.
 #[derive(Clone, Copy, Debug)]
 struct PackedHints([u32; 2]);
+
+impl Gap {
+    /// The largest sum of the two bodies' odometer readings `t0 + t1` under which the proof
+    /// holds: their travel since, `(t0 - g0) + (t1 - g1)` units, is then less than the spare
+    /// distance `spare / TRAVEL_UNIT` (a power of two: exact), and the pair is apart. 0 (no
+    /// sum is below it) when a reading was unknown or nothing is spare; rounded down where the
+    /// sum would run out of range.
+    fn limit(&self) -> Travel {
+        let [g0, g1] = self.travel;
+        let units = (self.proof.spare / TRAVEL_UNIT).ceil();
+        if g0 == TRAVEL_UNKNOWN || g1 == TRAVEL_UNKNOWN || units.is_nan() || units <= 0.0 {
+            return 0;
+        }
+        // `as` saturates at u64::MAX for a spare beyond the range (16 km).
+        g0.saturating_add(g1).saturating_add(units as u64)
+    }
+
+    /// Whether the proof still holds with the bodies' readings now `t0` and `t1`, given its
+    /// [`Gap::limit`] (an unknown reading saturates the sum: no).
+    fn holds(limit: Travel, t0: Travel, t1: Travel) -> bool {
+        t0.saturating_add(t1) < limit
+    }
+}
 
 impl PackedHints {
     fn of(hints: &Hints) -> PackedHints {
@@ -349,14 +380,23 @@ impl Separations {
     /// Slots for a new kept list `listed` (ascending), each with its pair's proof from these
     /// slots, if any (theirs are ascending by pair too).
     fn realigned(self, listed: &[(u32, u32)]) -> Separations {
-        let Separations { slots, odometers } = self;
-        let mut old = slots.iter().flatten().peekable();
+        let Separations {
+            slots,
+            limits,
+            odometers,
+        } = self;
+        let mut old = (slots.iter().zip(&limits))
+            .filter_map(|(g, &limit)| g.filter(|_| limit != 0))
+            .peekable();
         let slot = |&pair: &(u32, u32)| {
             while old.next_if(|g| g.pair < pair).is_some() {}
-            old.next_if(|g| g.pair == pair).copied()
+            old.next_if(|g| g.pair == pair)
         };
+        let slots: Vec<Option<Gap>> = listed.iter().map(slot).collect();
+        let limits = (slots.iter()).map(|g| g.map_or(0, |g| g.limit())).collect();
         Separations {
-            slots: listed.iter().map(slot).collect(),
+            slots,
+            limits,
             odometers,
         }
     }
@@ -369,6 +409,7 @@ impl Separations {
         };
         Separations {
             slots: Vec::new(),
+            limits: Vec::new(),
             odometers: bodies.iter().map(odometer).collect(),
         }
     }
@@ -376,7 +417,9 @@ impl Separations {
     /// The gap proof of pair `(i, j)` kept, if any.
     #[cfg(test)]
     fn get(&self, pair: (u32, u32)) -> Option<&Gap> {
-        self.slots.iter().flatten().find(|g| g.pair == pair)
+        (self.slots.iter().zip(&self.limits))
+            .filter_map(|(g, &limit)| g.as_ref().filter(|_| limit != 0))
+            .find(|g| g.pair == pair)
     }
 }
 
@@ -404,7 +447,7 @@ type WallChunk = (Part, Vec<(Touch, WallExtra)>);
 /// An item of a step's narrow phase: a chunk of body pairs with their gap slots, or a run of
 /// (body, wall) pairs.
 enum Work<'a> {
-    Pairs(&'a [(u32, u32)], &'a mut [Option<Gap>]),
+    Pairs(&'a [(u32, u32)], &'a mut [Option<Gap>], &'a mut [Travel]),
     Walls(&'a [(u32, u32)]),
 }
 
@@ -882,8 +925,11 @@ impl World {
         }
         self.times.broad += lap();
         // `at`: where this chunk's walk over the contact list is (see `Contacts::seek`).
-        // `slot`: the pair's gap proof, kept or made here (a contact leaves none).
-        let narrow = |&(i, j): &(u32, u32), at: &mut Cursor, slot: &mut Option<Gap>| {
+        // `slot`: the pair's gap proof, kept or made here, in force while its `limit` is not 0
+        // (a contact leaves none).
+        let narrow = |&(i, j): &(u32, u32),
+                      at: &mut Cursor,
+                      (slot, limit): (&mut Option<Gap>, &mut Travel)| {
             // The boxes and odometer readings from their compact lists: a pair that is not
             // touching is told so without reading the poses (a line or two each, out of cache).
             if !overlap_boxes(&boxes[i as usize], &boxes[j as usize]) {
@@ -894,15 +940,11 @@ impl World {
             // is first tested for a gap, from the direction that proved it last step.
             let last = self.contacts.seek(at, &key);
             let travel = [travels[i as usize], travels[j as usize]];
-            if let (None, Some(gap)) = (last, &slot) {
-                // Still apart when the two bodies' travel since the proof is less than its
-                // spare distance: the pair is then more than the proof's margin apart, where
-                // the full test answers the same (no contact).
-                let moved =
-                    travelled(gap.travel[0], travel[0]) + travelled(gap.travel[1], travel[1]);
-                if moved < gap.proof.spare {
-                    return None;
-                }
+            // Still apart when the two bodies' travel since the proof is less than its spare
+            // distance: the pair is then more than the proof's margin apart, where the full
+            // test answers the same (no contact).
+            if last.is_none() && Gap::holds(*limit, travel[0], travel[1]) {
+                return None;
             }
             let (pi, pj) = (&posed[i as usize], &posed[j as usize]);
             let (bi, bj) = (&self.bodies[i as usize], &self.bodies[j as usize]);
@@ -926,16 +968,18 @@ impl World {
                 }
                 None => {
                     let line = centre_line(pi, pj);
-                    let (start, mut hints) = slot.map_or((line, Hints::default()), |g| {
-                        (g.proof.axis, g.hints.hints())
-                    });
+                    let (start, mut hints) = (slot.filter(|_| *limit != 0))
+                        .map_or((line, Hints::default()), |g| {
+                            (g.proof.axis, g.hints.hints())
+                        });
                     if let Some(proof) = gap_proof(si, pi, sj, pj, &start, &mut hints) {
-                        *slot = Some(Gap {
+                        let gap = Gap {
                             pair: (i, j),
                             proof,
                             hints: PackedHints::of(&hints),
                             travel,
-                        });
+                        };
+                        (*slot, *limit) = (Some(gap), gap.limit());
                         return None;
                     }
                     // A new contact is clipped: finding a structure costs more than that,
@@ -944,7 +988,8 @@ impl World {
                     overlap_kept(si, pi, sj, pj, &line, None, false)
                 }
             }?;
-            *slot = None;
+            // (The slot itself is left as it is: a contact pair need not load its line.)
+            *limit = 0;
             let va = bi.velocity_with(&omegas[i as usize], &o.centroid);
             let last = last.map(|(c, _)| c);
             let (contact, mut touch) = self.touch(
@@ -967,7 +1012,7 @@ impl World {
         // one list (that copy was 4 % of a step on 2 threads): the touches are then referenced
         // in pair order.
         let contacts = &self.contacts;
-        let chunk = |(pairs, slots): (&[(u32, u32)], &mut [Option<Gap>])| {
+        let chunk = |pairs: &[(u32, u32)], slots: &mut [Option<Gap>], limits: &mut [Travel]| {
             let owner = Buffers::slot(threads);
             let (mut touches, mut touching, mut part) = buffers_ref.take(owner);
             // Room for every pair: growing the list by doubling (realloc copies of 200-byte
@@ -984,8 +1029,8 @@ impl World {
             // The energy sums too, while each touch is in this core's cache (summed over the
             // list afterwards, the touches made by the other core took 2.4x as long to read).
             let mut sums = Sums::default();
-            for (pair, slot) in pairs.iter().zip(slots) {
-                if let Some((key, contact, t)) = narrow(pair, &mut at, slot) {
+            for ((pair, slot), limit) in pairs.iter().zip(slots).zip(limits) {
+                if let Some((key, contact, t)) = narrow(pair, &mut at, (slot, limit)) {
                     sums.add(&contact, &t, &self.material);
                     part.push(key, contact);
                     touches.push(t);
@@ -1084,11 +1129,12 @@ impl World {
             wall_pairs.len().max(1)
         };
         let items: Vec<Work> = (pairs.chunks(CHUNK).zip(gaps.slots.chunks_mut(CHUNK)))
-            .map(|(p, g)| Work::Pairs(p, g))
+            .zip(gaps.limits.chunks_mut(CHUNK))
+            .map(|((p, g), l)| Work::Pairs(p, g, l))
             .chain(wall_pairs.chunks(wall_chunk).map(Work::Walls))
             .collect();
         let work = |item: Work| match item {
-            Work::Pairs(p, g) => Done::Pairs(chunk((p, g))),
+            Work::Pairs(p, g, l) => Done::Pairs(chunk(p, g, l)),
             Work::Walls(w) => Done::Walls(wall_touches(w)),
         };
         let (mut chunks, mut wall_parts, mut wall_touches) = (Vec::new(), Vec::new(), Vec::new());
@@ -1743,23 +1789,76 @@ mod tests {
         UnitQuaternion::from_scaled_axis(axis * rng.random_range(0.0..3.0))
     }
 
+    /// A proof's limit says it holds exactly when the bodies' travel since, in whole units,
+    /// is below its spare distance (what `travelled` sums as floats, whose answer it may
+    /// only make stricter), and never for an unknown reading, a NaN or zero spare distance.
+    #[test]
+    fn a_gap_limit_holds_exactly_while_the_travel_is_below_the_spare() {
+        use crate::dem::shape::travelled;
+        let gap = |travel: [Travel; 2], spare: f64| Gap {
+            pair: (0, 1),
+            proof: GapProof {
+                axis: Vec3::x(),
+                spare,
+            },
+            hints: PackedHints::of(&Hints::default()),
+            travel,
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(31);
+        let mut held = 0;
+        for _ in 0..100_000 {
+            let g = [rng.random_range(0..1u64 << 50), rng.random_range(0..1u64 << 50)];
+            let units = rng.random_range(1..1u64 << 40);
+            let spare = units as f64 * TRAVEL_UNIT;
+            // Travels within a few units of the spare distance, either side.
+            let d0 = rng.random_range(0..=units + 3);
+            let d1 = (units + 3 - d0).saturating_sub(rng.random_range(0..7));
+            let t = [g[0] + d0, g[1] + d1];
+            let holds = Gap::holds(gap(g, spare).limit(), t[0], t[1]);
+            assert_eq!(holds, d0 + d1 < units, "{g:?} {t:?} {units}");
+            let moved = travelled(g[0], t[0]) + travelled(g[1], t[1]);
+            assert!(!(moved < spare) || holds, "stricter than the sum of floats");
+            held += usize::from(holds);
+        }
+        assert!(held > 10_000 && held < 90_000, "{held}");
+        // A spare distance that is not a whole number of units: the travel must be below it.
+        let g = gap([5, 7], 10.5 * TRAVEL_UNIT).limit();
+        assert!(Gap::holds(g, 5 + 10, 7) && !Gap::holds(g, 5 + 11, 7));
+        for spare in [0.0, -1.0, f64::NAN] {
+            assert_eq!(gap([0, 0], spare).limit(), 0, "{spare}");
+        }
+        assert_eq!(gap([TRAVEL_UNKNOWN, 0], 1.0).limit(), 0);
+        assert_eq!(gap([0, TRAVEL_UNKNOWN], 1.0).limit(), 0);
+        // Out of range: rounded down, still a bound.
+        let far = gap([u64::MAX - 9, 3], 1e9).limit();
+        assert_eq!(far, u64::MAX);
+        assert!(!Gap::holds(far, TRAVEL_UNKNOWN, 0) && !Gap::holds(far, 0, TRAVEL_UNKNOWN));
+        assert!(Gap::holds(gap([1, 2], 1e9).limit(), 1 << 62, 1 << 62));
+    }
+
     #[test]
     fn gap_proofs_follow_their_pairs_to_a_new_kept_list() {
         let gap = |(i, j): (u32, u32)| Gap {
             pair: (i, j),
             proof: GapProof {
                 axis: Vec3::new(i as f64, j as f64, 0.0),
-                spare: 0.0,
+                spare: 1e-3,
             },
             hints: PackedHints::of(&Hints::default()),
             travel: [0; 2],
         };
         // The old list (0, 1) (0, 5) (2, 3) (2, 9) (4, 5) (7, 8), proofs for all but (2, 3).
+        // (0, 5) has only a stale proof: its limit was set to 0 (a contact since).
+        let slots: Vec<Option<Gap>> = [(0, 1), (0, 5), (2, 3), (2, 9), (4, 5), (7, 8)]
+            .into_iter()
+            .map(|p| (p != (2, 3)).then(|| gap(p)))
+            .collect();
+        let limits = (slots.iter())
+            .map(|g| g.filter(|g| g.pair != (0, 5)).map_or(0, |g| g.limit()))
+            .collect();
         let old = Separations {
-            slots: [(0, 1), (0, 5), (2, 3), (2, 9), (4, 5), (7, 8)]
-                .into_iter()
-                .map(|p| (p != (2, 3)).then(|| gap(p)))
-                .collect(),
+            slots,
+            limits,
             odometers: Vec::new(),
         };
         let listed = [(0, 0), (0, 5), (1, 2), (2, 3), (2, 9), (7, 8), (9, 9)];
@@ -1768,7 +1867,7 @@ mod tests {
         let expected: Vec<Option<Vec3>> = listed
             .iter()
             .map(|&p| {
-                [(0, 5), (2, 9), (7, 8)]
+                [(2, 9), (7, 8)]
                     .contains(&p)
                     .then(|| gap(p).proof.axis)
             })
@@ -1779,6 +1878,10 @@ mod tests {
             .slots
             .iter()
             .all(Option::is_none));
+        let limits: Vec<Travel> = (new.slots.iter())
+            .map(|g| g.map_or(0, |g| g.limit()))
+            .collect();
+        assert_eq!(new.limits, limits);
         assert!(old.realigned(&[]).slots.is_empty());
         // A slot is one cache line (it was 216 bytes with both bodies' poses).
         assert_eq!(std::mem::size_of::<Gap>(), 64);
@@ -2036,11 +2139,9 @@ mod tests {
             assert_eq!(state(&kept), state(&fresh), "step {step}");
             contacts += kept.contacts.len();
             let odometers = &kept.separations.odometers;
-            carried += kept
-                .separations
-                .slots
-                .iter()
-                .flatten()
+            let gaps = &kept.separations;
+            carried += (gaps.slots.iter().zip(&gaps.limits))
+                .filter_map(|(g, &limit)| g.filter(|_| limit != 0))
                 .filter(|g| g.travel[0] != odometers[g.pair.0 as usize].travel)
                 .count();
         }
