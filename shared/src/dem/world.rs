@@ -1807,7 +1807,10 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(31);
         let mut held = 0;
         for _ in 0..100_000 {
-            let g = [rng.random_range(0..1u64 << 50), rng.random_range(0..1u64 << 50)];
+            let g = [
+                rng.random_range(0..1u64 << 50),
+                rng.random_range(0..1u64 << 50),
+            ];
             let units = rng.random_range(1..1u64 << 40);
             let spare = units as f64 * TRAVEL_UNIT;
             // Travels within a few units of the spare distance, either side.
@@ -1866,11 +1869,7 @@ mod tests {
         let axes: Vec<Option<Vec3>> = new.slots.iter().map(|g| g.map(|g| g.proof.axis)).collect();
         let expected: Vec<Option<Vec3>> = listed
             .iter()
-            .map(|&p| {
-                [(2, 9), (7, 8)]
-                    .contains(&p)
-                    .then(|| gap(p).proof.axis)
-            })
+            .map(|&p| [(2, 9), (7, 8)].contains(&p).then(|| gap(p).proof.axis))
             .collect();
         assert_eq!(axes, expected);
         assert!(Separations::default()
