@@ -20,6 +20,12 @@
 //!   each size, walked for a fixed number of dependent loads (a load cannot start before the
 //!   last one ends, so the time per load is the latency of wherever the set lives, page walks
 //!   included).
+//! - Cross-core round trip: two threads hand one cache line back and forth through an atomic
+//!   flag, timed per round trip. This is what a step's loops pay each time a body posed,
+//!   paired or moved by one thread is next read by the other. On the VM the two processors are
+//!   placed by the host: in session 31 the round trip measured 56-89 ns in some minutes and
+//!   325-350 ns in others, and the 2-thread `dem` runs of the 500 I_P bed took 0.74-0.87 s and
+//!   1.35-1.57 s with them (1 thread: 1.28-1.32 s), so the 2-thread rows need this line.
 
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
@@ -68,6 +74,37 @@ fn latency_ns(bytes: usize) -> f64 {
     let secs = clock.elapsed().as_secs_f64();
     black_box(at);
     secs / loads as f64 * 1e9
+}
+
+/// Nanoseconds per round trip of a cache line between two threads (on a machine of two
+/// processors or more, the scheduler puts them on two): one sets a flag, the other sees it and
+/// clears it, and so on. `None` with one processor (the two would take turns on it).
+fn round_trip_ns() -> Option<f64> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    if std::thread::available_parallelism().map_or(1, |n| n.get()) < 2 {
+        return None;
+    }
+    const TRIPS: u32 = 500_000;
+    let flag = AtomicBool::new(false);
+    let secs = std::thread::scope(|s| {
+        s.spawn(|| {
+            for _ in 0..TRIPS {
+                while !flag.load(Ordering::Acquire) {
+                    std::hint::spin_loop();
+                }
+                flag.store(false, Ordering::Release);
+            }
+        });
+        let clock = Instant::now();
+        for _ in 0..TRIPS {
+            flag.store(true, Ordering::Release);
+            while flag.load(Ordering::Acquire) {
+                std::hint::spin_loop();
+            }
+        }
+        clock.elapsed().as_secs_f64()
+    });
+    Some(secs / f64::from(TRIPS) * 1e9)
 }
 
 /// The processor as `/proc/cpuinfo` names it: model name, family, model and stepping of the
@@ -130,4 +167,8 @@ fn main() {
         })
         .collect();
     println!("machine: load latency by working set: {}", cells.join(", "));
+    match round_trip_ns() {
+        Some(ns) => println!("machine: cache line between two threads, round trip {ns:.0} ns"),
+        None => println!("machine: cache line between two threads: one processor only"),
+    }
 }
