@@ -380,25 +380,25 @@ impl Separations {
     /// Slots for a new kept list `listed` (ascending), each with its pair's proof from these
     /// slots, if any (theirs are ascending by pair too).
     fn realigned(self, listed: &[(u32, u32)]) -> Separations {
-        let Separations {
-            slots,
-            limits,
-            odometers,
-        } = self;
-        let mut old = (slots.iter().zip(&limits))
-            .filter_map(|(g, &limit)| g.filter(|_| limit != 0))
-            .peekable();
+        let mut old = self.in_force().peekable();
         let slot = |&pair: &(u32, u32)| {
             while old.next_if(|g| g.pair < pair).is_some() {}
-            old.next_if(|g| g.pair == pair)
+            old.next_if(|g| g.pair == pair).copied()
         };
         let slots: Vec<Option<Gap>> = listed.iter().map(slot).collect();
+        drop(old);
         let limits = (slots.iter()).map(|g| g.map_or(0, |g| g.limit())).collect();
         Separations {
             slots,
             limits,
-            odometers,
+            odometers: self.odometers,
         }
+    }
+
+    /// The proofs in force (those whose limit is not 0), in slot order.
+    fn in_force(&self) -> impl Iterator<Item = &Gap> {
+        (self.slots.iter().zip(&self.limits))
+            .filter_map(|(g, &limit)| g.as_ref().filter(|_| limit != 0))
     }
 
     /// No proofs, and an odometer for each of `bodies` set at zero.
@@ -417,9 +417,7 @@ impl Separations {
     /// The gap proof of pair `(i, j)` kept, if any.
     #[cfg(test)]
     fn get(&self, pair: (u32, u32)) -> Option<&Gap> {
-        (self.slots.iter().zip(&self.limits))
-            .filter_map(|(g, &limit)| g.as_ref().filter(|_| limit != 0))
-            .find(|g| g.pair == pair)
+        self.in_force().find(|g| g.pair == pair)
     }
 }
 
@@ -2138,9 +2136,7 @@ mod tests {
             assert_eq!(state(&kept), state(&fresh), "step {step}");
             contacts += kept.contacts.len();
             let odometers = &kept.separations.odometers;
-            let gaps = &kept.separations;
-            carried += (gaps.slots.iter().zip(&gaps.limits))
-                .filter_map(|(g, &limit)| g.filter(|_| limit != 0))
+            carried += (kept.separations.in_force())
                 .filter(|g| g.travel[0] != odometers[g.pair.0 as usize].travel)
                 .count();
         }
