@@ -7,11 +7,11 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use nalgebra::UnitQuaternion;
 use rand::{RngCore, SeedableRng};
-use shared::dem::overlap::{overlap, overlap_along};
+use shared::dem::collision::overlap::{overlap, overlap_along};
 use shared::dem::shape::{Posed, Shape};
+use shared::geometry::mesh::PolyMesh;
+use shared::geometry::{hull, polygen, subdiv};
 use shared::math::{unit_f64, Vec3};
-use shared::mesh::PolyMesh;
-use shared::{hull, polygen, subdiv};
 use std::hint::black_box;
 
 fn templates() -> Vec<PolyMesh> {

@@ -3,9 +3,9 @@
 //! mass properties and hull), OBJ writing and parsing. Run with `make bench`.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use shared::mass::MassProps;
-use shared::mesh::PolyMesh;
-use shared::{hull, obj, polygen, subdiv};
+use shared::geometry::mass::MassProps;
+use shared::geometry::mesh::PolyMesh;
+use shared::geometry::{hull, obj, polygen, subdiv};
 use std::hint::black_box;
 
 /// The nine templates' families: `per_k` polyhedra for each face count 6..14.

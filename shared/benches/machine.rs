@@ -3,17 +3,16 @@
 //! of the cache. `make bench` runs it before and after the DEM rows (`pipelines/bench-dem.sh`).
 //!
 //! Why: on the 2-core development VM the same `dem` code, with the same instruction count
-//! (callgrind), ran 1.6-2.2x slower in one session than in the one before, while compute-bound
-//! kernels ran at the same speed (docs/bench.md, "Session 25"). A step of `dem` reads a few MB
-//! to a hundred MB of bodies, contacts and structures, so it is sensitive to how much of the
-//! shared last-level cache the VM's neighbours leave it, and on which processor the VM runs
-//! (session 26 found that session 24's rates needed a faster core than this one's); these
-//! lines say on which host, and in which kind of hour, a run was measured.
+//! (callgrind), has run 1.6-2.2x slower on one host than on another, while compute-bound
+//! kernels ran at the same speed. A step of `dem` reads a few MB to a hundred MB of bodies,
+//! contacts and structures, so it is sensitive to how much of the shared last-level cache the
+//! VM's neighbours leave it, and on which processor the VM runs; these lines say on which host,
+//! and in which kind of hour, a run was measured.
 //!
 //! - Processor: the model as the VM reports it (name, family, model and stepping from
 //!   `/proc/cpuinfo`) and its caches (`/sys/devices/system/cpu/cpu0/cache`): the VM may be
-//!   put on another kind of host from one session to the next (docs/bench.md has seen both
-//!   an Intel Xeon and an AMD EPYC), which changes every figure.
+//!   put on another kind of host from one day to the next (both an Intel Xeon and an AMD EPYC
+//!   have been seen), which changes every figure.
 //! - Clock: a chain of dependent integer or-multiplies, timed (4 cycles a link on current
 //!   x86-64 cores, so the line also gives the clock those cores run at).
 //! - Latency: a random cyclic chain of pointers, one per 64-byte line, over a working set of
@@ -23,7 +22,7 @@
 //! - Cross-core round trip: two threads hand one cache line back and forth through an atomic
 //!   flag, timed per round trip. This is what a step's loops pay each time a body posed,
 //!   paired or moved by one thread is next read by the other. On the VM the two processors are
-//!   placed by the host: in session 31 the round trip measured 56-89 ns in some minutes and
+//!   placed by the host: the round trip has measured 56-89 ns in some minutes and
 //!   325-350 ns in others, and the 2-thread `dem` runs of the 500 I_P bed took 0.74-0.87 s and
 //!   1.35-1.57 s with them (1 thread: 1.28-1.32 s), so the 2-thread rows need this line.
 

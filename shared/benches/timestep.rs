@@ -1,5 +1,5 @@
-//! Time step against energy error, the "speed against error" table for the time step:
-//! test 6's scene (200 I_P and Ab_3 bodies rained into a box, soft kn = 1e5 N/m, 0.45 s) at
+//! Time step against energy error, the "speed against error" table for the time step:
+//! the box scene (200 I_P and Ab_3 bodies rained into a box, soft kn = 1e5 N/m, 0.45 s) at
 //! three safety factors, once with friction and damping (how well the energy audit closes)
 //! and once undamped and frictionless (how far the total energy drifts). Prints a Markdown
 //! table with the wall time and throughput of each run (all threads). Run by `make bench`:
@@ -12,7 +12,7 @@ fn main() {
     let soft = soft();
     let (dissipative, conservative) = (dissipative(soft), conservative(soft));
     println!(
-        "Test 6's scene, {BODIES} bodies, {T} s simulated, kn = {:e} N/m",
+        "The box scene, {BODIES} bodies, {T} s simulated, kn = {:e} N/m",
         soft.kn
     );
     println!();

@@ -7,9 +7,10 @@
 //!
 //!     cargo bench -p granular-shared --bench walls -- out/bench/nine2000.jsonl [STEPS [GRID]]
 
-use shared::dem::state::read_world;
+use shared::dem::io::state::read_world;
+use shared::dem::parallel::on_pool;
 use shared::dem::wall::{grid_triangles, Wall, WallKind};
-use shared::dem::world::{on_pool, World};
+use shared::dem::world::World;
 use shared::math::Vec3;
 use std::time::Instant;
 

@@ -3,7 +3,7 @@
 //! Exit codes: 0 success (also when the reader of our output went away: a broken pipe is not an
 //! error), 1 bad data or a failed computation, 2 bad usage (clap's own code).
 
-use crate::obj::{Item, ObjObject, ObjReader};
+use crate::geometry::obj::{Item, ObjObject, ObjReader};
 use rayon::prelude::*;
 use std::io::{self, BufRead, BufWriter, IsTerminal};
 use std::process::ExitCode;
@@ -39,7 +39,7 @@ pub fn stdout() -> BufWriter<io::StdoutLock<'static>> {
 }
 
 /// Writes a picture as PNG to standard output.
-pub fn write_png_stdout(img: &crate::render::Image) -> anyhow::Result<()> {
+pub fn write_png_stdout(img: &crate::draw::render::Image) -> anyhow::Result<()> {
     use anyhow::Context;
     use std::io::Write;
     let mut png = Vec::new();
@@ -60,13 +60,13 @@ pub fn require_objects(n: u64) -> anyhow::Result<()> {
 
 /// The mass properties of `obj` once it is known to be a solid: closed, consistently oriented,
 /// faces outwards. Errors name the object and its line.
-pub fn solid(obj: &ObjObject) -> anyhow::Result<crate::mass::MassProps> {
+pub fn solid(obj: &ObjObject) -> anyhow::Result<crate::geometry::mass::MassProps> {
     use anyhow::Context;
     let what = || format!("object '{}' (line {})", obj.mesh.name, obj.line);
     obj.mesh
         .topology(Some(&obj.face_lines))
         .with_context(what)?;
-    let props = crate::mass::MassProps::of(&obj.mesh);
+    let props = crate::geometry::mass::MassProps::of(&obj.mesh);
     // Flat: no volume against the cube of its extent, to round-off.
     let extent = crate::math::extent(&obj.mesh.vertices);
     if props.volume.abs() <= 1e-12 * crate::math::cube(extent) {
@@ -147,14 +147,14 @@ pub enum Emit<T> {
 /// The OBJ output of a tool that turns each object of a stream into meshes: comments between
 /// objects pass through, and the tool's provenance comment goes before its first object.
 pub struct ObjOut<W: io::Write> {
-    out: crate::obj::ObjWriter<W>,
+    out: crate::geometry::obj::ObjWriter<W>,
     provenance: Option<String>,
 }
 
 impl<W: io::Write> ObjOut<W> {
     pub fn new(tool: &str, out: W) -> Self {
         ObjOut {
-            out: crate::obj::ObjWriter::new(out),
+            out: crate::geometry::obj::ObjWriter::new(out),
             provenance: Some(provenance(tool)),
         }
     }
@@ -163,7 +163,7 @@ impl<W: io::Write> ObjOut<W> {
     /// with that object's comments.
     pub fn emit(
         &mut self,
-        item: Emit<(Vec<crate::mesh::PolyMesh>, Vec<String>)>,
+        item: Emit<(Vec<crate::geometry::mesh::PolyMesh>, Vec<String>)>,
     ) -> io::Result<()> {
         match item {
             Emit::Comment(c) => self.out.comment(&c),
@@ -243,7 +243,7 @@ pub fn for_each_object<R: BufRead + Send, T: Send>(
 fn read_batch<R: BufRead>(
     reader: &mut ObjReader<R>,
     batch: usize,
-) -> (Vec<Item>, Option<crate::obj::ObjError>) {
+) -> (Vec<Item>, Option<crate::geometry::obj::ObjError>) {
     let mut items = Vec::new();
     let mut objects = 0;
     while objects < batch {

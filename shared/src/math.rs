@@ -123,3 +123,37 @@ pub fn clip_with(poly: &mut Vec<Vec3>, tmp: &mut Vec<Vec3>, dist: &[f64]) -> boo
     std::mem::swap(poly, tmp);
     poly.len() >= 3
 }
+/// A uniformly random rotation (Shoemake's method).
+pub fn random_rotation(rng: &mut impl rand::Rng) -> nalgebra::UnitQuaternion<f64> {
+    let (u1, u2, u3): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
+    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+    let tau = 2.0 * std::f64::consts::PI;
+    let (t2, t3) = (tau * u2, tau * u3);
+    nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+        b * t3.cos(),
+        a * t2.sin(),
+        a * t2.cos(),
+        b * t3.sin(),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn random_rotations_are_unit_and_spread_over_all_directions() {
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let mut mean = Vec3::zeros();
+        let n = 20000;
+        for _ in 0..n {
+            let q = random_rotation(&mut rng);
+            assert!((q.norm() - 1.0).abs() < 1e-12);
+            mean += q * Vec3::x();
+        }
+        // Uniform directions average to zero within a few 1 / sqrt(n).
+        assert!((mean / n as f64).norm() < 0.03, "{mean:?}");
+    }
+}

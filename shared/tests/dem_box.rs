@@ -1,21 +1,22 @@
-//! Issue "DEM engine", test 6: 200 mixed polyhedra (the nine I_P templates of 6 to 14 faces and
+//! The box scene: 200 mixed polyhedra (the nine I_P templates of 6 to 14 faces and
 //! their Ab_3 hulls) falling into a box. Without damping or friction the total energy is kept;
 //! with them the energy audit closes. Run in release mode (`make test`).
 //!
 //! The contacts are softer than the paper's (kn = 1e5 N/m instead of 1e8): conservation does
 //! not depend on the stiffness, and a 30x larger time step keeps the test to minutes.
 
+use shared::dem::law::Material;
 use shared::dem::scenes::{conservative, dissipative, run, soft, Run, BODIES, T};
-use shared::dem::world::{Material, World};
+use shared::dem::world::World;
 
-/// Test 6's scene at the default time step, 0.2 x critical.
+/// The box scene at the default time step, 0.2 x critical.
 fn box_scene(material: Material) -> World {
     let w = shared::dem::scenes::box_scene(material, 0.2);
     assert!(w.shapes[1].vertices.len() > 300, "Ab_3 hulls are large");
     w
 }
 
-/// KNOWN FAILURE (issue "DEM engine", test 6, conservative half). Undamped and frictionless the
+/// KNOWN FAILURE (the box scene, conservative half). Undamped and frictionless the
 /// 200 bodies bounce as an elastic gas (at most 27 contacts at once); the energy drifts by up to
 /// 0.41 J against a peak kinetic energy of 6.95 J (5.9 %, target 1 %). Cause, measured on
 /// single impacts of random pairs (2 m/s, random poses, no spin): the paper's law F = kn V/|S_B|
@@ -25,14 +26,14 @@ fn box_scene(material: Material) -> World {
 /// and still 2.4 % at kn = 1e8 N/m, so the drift is the law's, not the integrator's. The drift
 /// falls with stiffness as fewer contacts overlap in time: 3.1 % at kn = 1e6, 1.1 % at 1e7
 /// (these two measured before contacts carried their work; at 1e5 that changed 5.7 % to 5.9 %),
-/// and at the paper's kn = 1e8 the test passes (0.56 %, the test below). See docs/dem-contact.md.
+/// and at the paper's kn = 1e8 the test passes (0.56 %, the test below). See docs/models/contact.md.
 #[test]
 #[ignore = "known failure: 5.9 % energy drift in undamped impacts, see the doc comment"]
 fn two_hundred_mixed_polyhedra_in_a_box_keep_their_energy() {
     keep_their_energy(soft());
 }
 
-/// Test 6's conservative half with the stiffness of `material`: undamped and frictionless, the
+/// The box scene's conservative half with the stiffness of `material`: undamped and frictionless, the
 /// energy stays within 1 % of the peak kinetic energy.
 fn keep_their_energy(material: Material) {
     let w = box_scene(conservative(material));
@@ -55,13 +56,12 @@ fn keep_their_energy(material: Material) {
     );
 }
 
-/// Test 6's conservative half at the paper's stiffness, kn = 1e8 N/m (ks = kn / 2): the drift
+/// The box scene's conservative half at the paper's stiffness, kn = 1e8 N/m (ks = kn / 2): the drift
 /// falls with stiffness (above), and this is the stiffness the engine is for. About 30x the
 /// steps of the soft run (dt ~ 1/sqrt(kn)).
 /// Measured (2026-12-03, 2 threads): drift 0.043 J against a peak kinetic energy of 6.77 J
 /// (**0.63 %**), 2959 collisions (at most 4 contacts at once: at this stiffness an impact lasts
-/// microseconds), in 42 s (5.5 minutes in session 7, 25 on one thread before the broad phase
-/// kept its pairs): part of `make test`.
+/// microseconds), in 42 s: part of `make test`.
 #[test]
 fn two_hundred_mixed_polyhedra_in_a_box_keep_their_energy_at_the_papers_stiffness() {
     let paper = Material::default();
@@ -69,7 +69,7 @@ fn two_hundred_mixed_polyhedra_in_a_box_keep_their_energy_at_the_papers_stiffnes
     keep_their_energy(paper);
 }
 
-/// Issue "DEM engine", test 6, dissipative half: with friction and local damping, what they
+/// The box scene's dissipative half: with friction and local damping, what they
 /// dissipate plus kinetic and elastic energy must equal the work of gravity within 1 %.
 /// Measured: 0.068 J against 8.09 J of gravity work (0.84 %), 142 contacts at most, 35 s in
 /// release mode on 2 cores. It closed only to 1.35 % while the elastic energy was taken as

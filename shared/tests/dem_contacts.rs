@@ -1,14 +1,14 @@
-//! Test 7 of issue "DEM engine": hard pairs. The overlap construction is checked against a
+//! Hard pairs. The overlap construction is checked against a
 //! brute-force separating-axis test on thousands of poses: no overlapping pair is reported as
 //! separated, no separated pair as overlapping, the normal never points from B back into A.
 
 use nalgebra::UnitQuaternion;
 use rand::{RngCore, SeedableRng};
-use shared::dem::overlap::{gap_proof, overlap, overlap_along, overlap_half_space};
+use shared::dem::collision::overlap::{gap_proof, overlap, overlap_along, overlap_half_space};
 use shared::dem::shape::{Posed, Shape};
+use shared::geometry::mesh::cube;
+use shared::geometry::polygen;
 use shared::math::{unit_f64, Vec3};
-use shared::mesh::cube;
-use shared::polygen;
 
 /// Signed separation of two convex polyhedra by the separating-axis test over face normals and
 /// edge-edge cross products: > 0 separated by that gap, < 0 overlapping by at least that.
@@ -62,7 +62,7 @@ fn shapes() -> Vec<(Shape, f64)> {
 }
 
 /// The polygen template of `k` faces from `seed` (first object).
-fn template(k: usize, seed: u64) -> shared::mesh::PolyMesh {
+fn template(k: usize, seed: u64) -> shared::geometry::mesh::PolyMesh {
     let params = polygen::Params {
         faces: k,
         ..Default::default()
@@ -293,7 +293,7 @@ fn grazing_vertex_contacts_have_the_depth_of_their_penetration() {
             if !cap_fits {
                 continue;
             }
-            let slab = |o: &shared::dem::overlap::Overlap| m.dot(&(o.centroid - p));
+            let slab = |o: &shared::dem::collision::overlap::Overlap| m.dot(&(o.centroid - p));
             let tol = 1e-9 * delta + 1e-15;
             for (o, normal) in [
                 (overlap(sa, &a, sb, &b), -m),
@@ -349,7 +349,7 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
     let mut large = Vec::new();
     for (k, levels) in [(6, 3), (9, 2), (14, 3), (11, 2)] {
         let p = template(k, 5);
-        let smooth = shared::subdiv::subdivide(&p, &p.topology(None).unwrap(), levels);
+        let smooth = shared::geometry::subdiv::subdivide(&p, &p.topology(None).unwrap(), levels);
         large.push(Shape::from_mesh(&smooth).unwrap());
     }
     // A flat ellipsoid (1 : 1 : 0.03) of 400 random surface points: many nearly coplanar
@@ -363,7 +363,8 @@ fn climbing_large_hulls_finds_the_same_overlap_as_scanning() {
             Vec3::new(r * phi.cos(), r * phi.sin(), 0.03 * z)
         })
         .collect();
-    large.push(Shape::from_mesh(&shared::hull::convex_hull(&flat).unwrap().mesh).unwrap());
+    large
+        .push(Shape::from_mesh(&shared::geometry::hull::convex_hull(&flat).unwrap().mesh).unwrap());
     for s in &large {
         assert!(
             s.climb.is_some(),

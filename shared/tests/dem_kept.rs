@@ -1,11 +1,11 @@
-//! Contacts keep their overlap's structure from step to step (`shared::dem::structure`), and a
+//! Contacts keep their overlap's structure from step to step (`shared::dem::collision::kept`), and a
 //! large hull's contact with a plane wall its wall set (`overlap_half_space_kept`): that must
-//! change no bytes. The box scene of test 6 (I_P and Ab_3 bodies rained into a box of plane
+//! change no bytes. The box scene (I_P and Ab_3 bodies rained into a box of plane
 //! walls, with friction and damping) is run with structures and sets kept and with every one
 //! found again each step, and through a restart from its written state, which keeps none.
 
+use shared::dem::io::state::{read_world, write_world};
 use shared::dem::scenes::{box_scene, dissipative, soft};
-use shared::dem::state::{read_world, write_world};
 use shared::dem::world::World;
 
 fn state(w: &World) -> Vec<u8> {

@@ -1,12 +1,13 @@
-//! The DEM engine against analytic results and conservation laws (issue "DEM engine", tests
+//! The DEM engine against analytic results and conservation laws (tests
 //! 1, 2, 3, 4, 5). Run in release mode (`make test`).
 
 use nalgebra::UnitQuaternion;
+use shared::dem::law::Material;
 use shared::dem::shape::Shape;
 use shared::dem::wall::Wall;
-use shared::dem::world::{Material, World};
+use shared::dem::world::World;
+use shared::geometry::mesh::{cube, cuboid};
 use shared::math::Vec3;
-use shared::mesh::{cube, cuboid};
 
 const SIDE: f64 = 0.02; // a 20 mm cube
 
@@ -139,7 +140,7 @@ fn set_stiffness_scales_the_contacts_it_carries_over() {
     );
 }
 
-/// Issue "DEM engine", test 3b. This test found a real bug: with side faces aligned to
+/// This test found a real bug: with side faces aligned to
 /// round-off, the overlap dropped both coplanar side pieces, its centroid jumped 1.5 mm off
 /// axis for a step and the cubes picked up a yaw spin of 4e-6 rad/s that nothing damps.
 #[test]
@@ -225,7 +226,7 @@ fn incline(h: f64, theta: f64, mu: f64, damping: f64, ramp: f64, t: f64) -> (f64
     (w.bodies[i].pos.x - x0, w.bodies[i].vel.x, fitted)
 }
 
-/// Issue "DEM engine", test 4, sticking: a cube on a plane tilted quasi-statically to
+/// Sticking: a cube on a plane tilted quasi-statically to
 /// atan(mu) - 2 degrees stays, with the paper's local damping. The cube must tilt onto its
 /// downhill edge to hold (the normal resultant sits 4.6 mm off centre, beyond the middle third of
 /// its 20 mm face): see the sliding tests below for what that regime costs without damping.
@@ -237,7 +238,7 @@ fn cube_on_an_incline_below_the_friction_angle_stays() {
     assert!(v.abs() < 1e-9, "moving at {v:e} m/s");
 }
 
-/// Issue "DEM engine", test 4, sliding: undamped, a plane at atan(mu) + 5 degrees; the block
+/// Sliding: undamped, a plane at atan(mu) + 5 degrees; the block
 /// slides with g (sin - mu cos). A block of height SIDE/2 keeps its whole face in contact while
 /// it slides (friction moves the normal resultant mu h / 2 = SIDE/8 off centre, inside the middle
 /// third), where the law is a Winkler foundation and conservative. The acceleration is fitted
@@ -262,7 +263,7 @@ fn flat_block_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
     );
 }
 
-/// KNOWN FAILURE (issue "DEM engine", test 4 with a cube, undamped). A sliding cube must lift
+/// KNOWN FAILURE (the incline with a cube, undamped). A sliding cube must lift
 /// its trailing edge (the normal resultant sits mu L / 2 = L/4 off centre, beyond the middle
 /// third). With the edge lifted the paper's law F = kn V/|S| at the overlap centroid is not
 /// conservative: F depends on the edge penetration only, its moment on the footprint (the field
@@ -271,7 +272,7 @@ fn flat_block_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
 /// positions 1e-12 to 1e-6 m apart; target 1 %); held undamped at
 /// atan(mu) - 2 degrees it walks 0.74 mm in 0.2 s. Local damping (0.3) stops both the rocking and
 /// the walk (test above). A conservative law (Winkler: force proportional to V) fixes it but
-/// makes vertex contacts far softer than the paper's kn: see docs/dem-contact.md.
+/// makes vertex contacts far softer than the paper's kn: see docs/models/contact.md.
 #[test]
 #[ignore = "known failure: rocking on a lifted edge without damping, see the doc comment"]
 fn cube_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
@@ -328,7 +329,7 @@ fn torque_free_asymmetric_body_conserves_and_flips() {
     );
 }
 
-/// Test 2: an edge or a vertex of a cube hits a face of another (frictionless, undamped, no
+/// An edge or a vertex of a cube hits a face of another (frictionless, undamped, no
 /// gravity): linear and angular momentum are conserved to round-off, energy within 1e-3.
 fn impact(rot_b: UnitQuaternion<f64>, offset: Vec3) -> (f64, f64, f64) {
     let (mut w, s) = cube_world(frictionless_undamped(), Vec3::zeros());
@@ -412,8 +413,8 @@ fn oblique_impacts_of_irregular_pairs_change_energy_by_the_laws_bound() {
     use rand::{Rng, SeedableRng};
     let mut shapes = Vec::new();
     for k in 0..9 {
-        let p = shared::polygen::generate(
-            &shared::polygen::Params {
+        let p = shared::geometry::polygen::generate(
+            &shared::geometry::polygen::Params {
                 faces: 6 + k,
                 ..Default::default()
             },
@@ -423,7 +424,9 @@ fn oblique_impacts_of_irregular_pairs_change_energy_by_the_laws_bound() {
         .unwrap();
         let topo = p.mesh.topology(None).unwrap();
         shapes.push(Shape::from_mesh(&p.mesh).unwrap());
-        shapes.push(Shape::from_mesh(&shared::subdiv::subdivide(&p.mesh, &topo, 3)).unwrap());
+        shapes.push(
+            Shape::from_mesh(&shared::geometry::subdiv::subdivide(&p.mesh, &topo, 3)).unwrap(),
+        );
     }
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let random_rotation = |rng: &mut rand_chacha::ChaCha8Rng| {
@@ -479,8 +482,8 @@ fn oblique_impacts_of_irregular_pairs_change_energy_by_the_laws_bound() {
 /// its velocities and its source-mesh frame, and only shrinks.
 #[test]
 fn abrading_a_world_keeps_each_body_in_place_inside_its_old_surface() {
-    use shared::hull::convex_hull;
-    use shared::subdiv::subdivide;
+    use shared::geometry::hull::convex_hull;
+    use shared::geometry::subdiv::subdivide;
     // A lopsided pyramid (its abraded centroid is not its centroid) and a cube, two bodies of
     // the pyramid at two sizes, all turned, moving and spinning; two of them touching.
     let apex = Vec3::new(0.2, 0.3, 1.5);
@@ -536,7 +539,7 @@ fn abrading_a_world_keeps_each_body_in_place_inside_its_old_surface() {
         );
         // The world vertices are those of the old surface subdivided where it was.
         let size = 2.0 * so.radius * old.scale;
-        let mesh = shared::mesh::PolyMesh {
+        let mesh = shared::geometry::mesh::PolyMesh {
             vertices: so.vertices.clone(),
             face_start: so.face_start.clone(),
             face_verts: so.face_verts.clone(),
@@ -583,7 +586,7 @@ fn abrading_a_world_keeps_each_body_in_place_inside_its_old_surface() {
 /// vertices; shapes within the budget are left alone.
 #[test]
 fn simplifying_a_world_keeps_each_body_on_its_old_vertices() {
-    use shared::subdiv::subdivide;
+    use shared::geometry::subdiv::subdivide;
     let cube_mesh = cube(0.5);
     let smooth = subdivide(&cube_mesh, &cube_mesh.topology(None).unwrap(), 2);
     let mut w = World::new(Material::default(), Vec3::zeros());
@@ -612,8 +615,7 @@ fn simplifying_a_world_keeps_each_body_on_its_old_vertices() {
     assert_eq!(w.bodies[1].pos, before.bodies[1].pos);
 }
 
-/// A hard case from a `pack` preparation (docs/pack.md, "What kept the equilibrium from
-/// settling"): a small I_P particle (10 mm) wedged between the cylinder wall and two fixed
+/// A hard case from a `pack` preparation (docs/models/walls.md, "Spots"): a small I_P particle (10 mm) wedged between the cylinder wall and two fixed
 /// neighbours, released from rest with no damping, walls at rest, no gravity. Nothing does
 /// work on it, so its energy audit must close: kinetic + elastic + friction stays what the
 /// overlaps stored at the start. Before each spot of a wall contact pushed on its own (the
@@ -632,7 +634,7 @@ fn a_particle_wedged_against_the_cylinder_keeps_its_energy_audit() {
         "/../tests/fixtures/wedged-on-cylinder.jsonl"
     );
     let text = std::fs::read(path).expect("fixture");
-    let mut w = shared::dem::state::read_world(&text[..]).expect("a valid state");
+    let mut w = shared::dem::io::state::read_world(&text[..]).expect("a valid state");
     w.step();
     let start = w.energy.balance();
     let mut largest = 0.0f64;

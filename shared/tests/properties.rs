@@ -1,10 +1,10 @@
 //! Properties that must hold for any input the generators can make (proptest).
 
 use proptest::prelude::*;
+use shared::geometry::{hull, mass::MassProps, obj, polygen, subdiv};
 use shared::math::Vec3;
-use shared::{hull, mass::MassProps, obj, polygen, subdiv};
 
-fn polyhedron(k: usize, seed: u64) -> shared::mesh::PolyMesh {
+fn polyhedron(k: usize, seed: u64) -> shared::geometry::mesh::PolyMesh {
     let params = polygen::Params {
         faces: k,
         ..Default::default()

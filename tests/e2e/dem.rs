@@ -156,7 +156,7 @@ fn bad_scenes_and_arguments() {
     fails(
         &["--steps", "1", "--ks", "nan"],
         &scene,
-        &["--ks must be a positive"],
+        &["--ks must be a stiffness of 0 or more"],
     );
     fails(
         &["--steps", "1", "--damping", "1"],
@@ -445,7 +445,7 @@ fn obj_output_holds_the_bodies_where_they_are_and_renders() {
     );
     let obj = std::fs::read(&path).unwrap();
     let _ = std::fs::remove_file(&path);
-    let objects = shared::obj::read_all(&obj[..]).unwrap();
+    let objects = shared::geometry::obj::read_all(&obj[..]).unwrap();
     let bodies: Vec<serde_json::Value> = String::from_utf8(state)
         .unwrap()
         .lines()
@@ -458,7 +458,7 @@ fn obj_output_holds_the_bodies_where_they_are_and_renders() {
         assert!(o.mesh.attrs.get("color").is_some());
         // Each object is its body's hull where the state has it: same centroid, and turned
         // as the body is, its inertia diagonal in the body's axes.
-        let m = shared::mass::MassProps::of(&o.mesh);
+        let m = shared::geometry::mass::MassProps::of(&o.mesh);
         for k in 0..3 {
             let x = b["pos"][k].as_f64().unwrap();
             assert!(

@@ -1,5 +1,5 @@
 //! The `pack` tool: broken input and arguments, and a small specimen that must meet the
-//! issue's final-state conditions (with the same bytes on 1 and 2 threads), in a cylinder and a box.
+//! final-state conditions (with the same bytes on 1 and 2 threads), in a cylinder and a box.
 
 use super::{fails, fixture, inside_out_cube, ok, run, run_env};
 
@@ -26,7 +26,7 @@ fn pack_rejects_broken_templates_and_arguments() {
         &["--size-min", "0.03", "--size-max", "0.02"],
         &nine,
         1,
-        &["--size-min 0.03 is above --size-max 0.02"],
+        &["--size-min 0.03 is above the largest size 0.02"],
     );
     rejects(
         &["--diameter", "0.05", "--height", "0.1"],
@@ -236,7 +236,7 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
         "{snapshots} VTK snapshots in {} steps",
         field(s, "steps")
     );
-    // The final state: every wall within 2 % of the target, equilibrium, nothing out
+    // The final state: every wall within 2 % of the target, equilibrium, nothing out
     // of the container, overlaps below 1 % of a size.
     let stresses = s["wall_stresses"].as_array().unwrap();
     for x in stresses {

@@ -3,8 +3,8 @@
 use anyhow::{bail, Context};
 use clap::Parser;
 use shared::cli;
-use shared::mesh::PolyMesh;
-use shared::subdiv;
+use shared::geometry::mesh::PolyMesh;
+use shared::geometry::subdiv;
 use std::process::ExitCode;
 
 const EXAMPLES: &str = "\

@@ -4,10 +4,10 @@ use anyhow::{bail, Context};
 use clap::Parser;
 use serde::Serialize;
 use shared::cli;
-use shared::dem::{
-    peer, state,
-    world::{Partner, World},
-};
+use shared::dem::contacts::Partner;
+use shared::dem::io::{state, yade};
+use shared::dem::law::Material;
+use shared::dem::world::World;
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -15,17 +15,17 @@ const EXAMPLES: &str = "\
 Examples:
   dem --steps 20000 < examples/drop.jsonl > settled.jsonl
   dem --steps 1000 < settled.jsonl | dem --steps 1000 > a.jsonl   (same bytes as --steps 2000)
-  dem --import-peer ../shared/peers/yade/scene_500.txt --steps 0 > scene500.jsonl
+  dem --import-peer pipelines/yade/scene_500.txt --steps 0 > scene500.jsonl
   polygen --faces 6..14 --seed 7 > nine.obj
-  dem --import-peer ../shared/peers/yade/scene_2000.txt --templates nine.obj --steps 0 > t2000.jsonl
+  dem --import-peer pipelines/yade/scene_500.txt --templates nine.obj --steps 0 > t500.jsonl
   dem --abrade 2 --steps 0 < examples/drop.jsonl > drop-ab2.jsonl   (the same scene as Ab_2 hulls)
   dem --abrade 3 --simplify 100 --steps 0 < examples/drop.jsonl      (Ab_3 hulls cut to 100 vertices)
   dem --time 0.3 --vtk out/drop --vtk-every 20000 < examples/drop.jsonl > /dev/null
   dem --until-unbalanced 1e-3 --time 2 < examples/drop.jsonl > settled.jsonl
-  dem --renumber --steps 0 < t2000.jsonl > t2000-sorted.jsonl   (ids along space: faster steps)
+  dem --renumber --steps 0 < t500.jsonl > t500-sorted.jsonl   (ids along space: faster steps)
       then open out/drop/particles.pvd (and contacts.pvd, walls.pvd) in ParaView
 
-Scene format (JSON lines, version 1, SI units; docs/dem-state.md): a header, then records
+Scene format (JSON lines, version 1, SI units; docs/formats/dem-state.md): a header, then records
   {\"type\":\"header\",\"format\":\"granular-dem\",\"version\":1,\"units\":\"SI\"}
   {\"type\":\"material\",\"density\":2600,\"kn\":1e8,\"ks\":5e7,\"friction\":0.5,\"wall_friction\":0,\"damping\":0.3}
   {\"type\":\"clock\",\"time\":0,\"step\":0,\"dt\":0,\"gravity\":[0,0,-9.81]}      (dt 0: automatic)
@@ -96,7 +96,7 @@ struct Cli {
     peer_state: Option<std::path::PathBuf>,
     /// With --import-peer: an OBJ stream of T templates (e.g. `polygen --faces 6..14 --seed 7`);
     /// particle i becomes template i mod T at the particle's equivalent-sphere diameter, centroid
-    /// and principal axes, so the bodies share T shapes (the issue's nine-template scenes)
+    /// and principal axes, so the bodies share T shapes (the benchmark's nine-template scenes)
     #[arg(long, value_name = "OBJ", requires = "import_peer")]
     templates: Option<std::path::PathBuf>,
     /// Abrade every shape LEVELS times before running (Catmull-Clark, then the convex hull: the
@@ -161,8 +161,8 @@ fn read_templates(
     path: &std::path::Path,
     input: impl std::io::BufRead,
 ) -> anyhow::Result<Vec<shared::dem::shape::Shape>> {
-    let objects =
-        shared::obj::read_all(input).with_context(|| format!("reading {}", path.display()))?;
+    let objects = shared::geometry::obj::read_all(input)
+        .with_context(|| format!("reading {}", path.display()))?;
     if objects.is_empty() {
         bail!(
             "{}: no objects (expected an OBJ stream of templates)",
@@ -197,7 +197,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 Some(p) => Some(read_templates(p, open(p)?)?),
                 None => None,
             };
-            peer::read_peer_scene(open(path)?, settled, templates.as_deref())
+            yade::read_peer_scene(open(path)?, settled, templates.as_deref())
                 .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
         }
         None => state::read_world(cli::stdin())?,
@@ -220,24 +220,20 @@ fn run(args: Cli) -> anyhow::Result<()> {
     if args.renumber {
         world.renumber_along_space();
     }
-    for (name, value) in [("--kn", args.kn), ("--ks", args.ks)] {
-        if let Some(k) = value {
-            if !(k > 0.0 && k.is_finite()) {
-                bail!("{name} must be a positive stiffness in N/m, got {k}");
-            }
-        }
-    }
+    // The scene's material with the options' changes, checked as a whole.
+    let m = world.material;
+    let wanted = Material {
+        kn: args.kn.unwrap_or(m.kn),
+        ks: args.ks.unwrap_or(m.ks),
+        damping: args.damping.unwrap_or(m.damping),
+        ..m
+    };
+    wanted.check().map_err(|e| anyhow::anyhow!("--{e}"))?;
     if args.kn.is_some() || args.ks.is_some() {
-        let m = &world.material;
-        world.set_stiffness(args.kn.unwrap_or(m.kn), args.ks.unwrap_or(m.ks));
+        world.set_stiffness(wanted.kn, wanted.ks);
         world.dt = 0.0; // the scene's step was for the old stiffness
     }
-    if let Some(a) = args.damping {
-        if !(0.0..1.0).contains(&a) {
-            bail!("--damping must be in [0, 1), got {a}");
-        }
-        world.material.damping = a;
-    }
+    world.material.damping = wanted.damping;
     if let Some(dt) = args.dt {
         if !(dt > 0.0 && dt.is_finite()) {
             bail!("--dt must be a positive number of seconds, got {dt}");
@@ -290,7 +286,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
     }
     let mut snapshots = match &args.vtk {
         Some(dir) => {
-            let mut s = shared::dem::vtk::Snapshots::new(dir)
+            let mut s = shared::dem::io::vtk::Snapshots::new(dir)
                 .with_context(|| format!("creating {}", dir.display()))?;
             s.write(&world)
                 .with_context(|| format!("writing VTK into {}", dir.display()))?;
@@ -302,7 +298,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let start = std::time::Instant::now();
     let mut ran = 0;
     // The steps run on the pool (see `on_pool`).
-    shared::dem::world::on_pool(|| -> anyhow::Result<()> {
+    shared::dem::parallel::on_pool(|| -> anyhow::Result<()> {
         for k in 0..steps {
             world.step();
             ran = k + 1;
@@ -396,7 +392,7 @@ const PALETTE: [&str; 9] = [
 
 /// The bodies as an OBJ stream for `render`: object GROUP/ID per body, coloured by its shape.
 fn bodies_obj(world: &shared::dem::world::World, group: &str) -> anyhow::Result<Vec<u8>> {
-    let mut out = shared::obj::ObjWriter::relative(Vec::new());
+    let mut out = shared::geometry::obj::ObjWriter::relative(Vec::new());
     for (id, b) in world.bodies.iter().enumerate() {
         let shape = &world.shapes[b.shape as usize];
         let mut mesh = shape.posed_mesh(&b.pos, &b.rot, b.scale);

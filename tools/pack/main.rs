@@ -3,8 +3,11 @@
 use anyhow::{bail, Context};
 use clap::{Parser, ValueEnum};
 use shared::cli;
-use shared::dem::{shape::Shape, state, world::Material};
-use shared::pack::{self, Container, Params, SizeMeasure};
+use shared::dem::io::state;
+use shared::dem::law::Material;
+use shared::dem::shape::Shape;
+use shared::lab::boundary;
+use shared::lab::pack::{self, Container, PackError, Params, SizeMeasure};
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -23,13 +26,13 @@ Examples:
 
 Every object of the OBJ stream on standard input is a template; particle i is template i mod T,
 so the templates come in equal numbers. The specimen goes to standard output as a dem state
-(JSON lines, docs/dem-state.md): bodies, contacts with their shear springs, and the walls
+(JSON lines, docs/formats/dem-state.md): bodies, contacts with their shear springs, and the walls
 (all frictionless, at rest): 0 the bottom platen, 1 the top platen, then 2 the cylinder, or in
 a box 2 to 5 the side planes at x-min, x-max, y-min, y-max. A summary
 (count, porosity, void ratio, coordination, wall stresses, unbalanced-force ratio, contact-normal
 anisotropy, largest overlap, wall-clock time) goes to standard error, and as JSON to --summary.
 
-How (docs/pack.md): a loose cloud without contacts in the container enlarged to fit it, no
+How (docs/models/pack.md): a loose cloud without contacts in the container enlarged to fit it, no
 gravity; the walls close in at one strain rate (a servo with integral action on the mean stress)
 at --prep-friction until the mean stress is within --tolerance of --pressure; then the particle
 friction is restored and each wall holds its own servo until every wall is within --tolerance
@@ -107,7 +110,7 @@ struct Cli {
     )]
     prep_friction: Option<f64>,
     /// Target relative density Dr = (e_max - e) / (e_max - e_min): finds e_min, e_max and the
-    /// preparation friction for Dr on a smaller sample first (docs/pack.md; the paper's 0.8)
+    /// preparation friction for Dr on a smaller sample first (docs/models/pack.md; the paper's 0.8)
     #[arg(long, value_name = "DR", allow_negative_numbers = true)]
     relative_density: Option<f64>,
     /// The calibration sample's container over the specimen's, in each direction
@@ -166,7 +169,7 @@ struct Cli {
     #[arg(long, default_value_t = 0.2, allow_negative_numbers = true)]
     safety: f64,
     /// Keep every particle's true mass and moments while preparing (by default they are scaled
-    /// so that every particle's critical time step is the largest particle's; docs/pack.md)
+    /// so that every particle's critical time step is the largest particle's; docs/models/pack.md)
     #[arg(long)]
     no_inertia_scaling: bool,
     /// Largest relative difference of a wall stress from --pressure at the end
@@ -190,7 +193,7 @@ struct Cli {
     /// Servo gain (0 to 1)
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     gain: f64,
-    /// Integral time of the compaction's servo, steps (0: proportional only; docs/pack.md)
+    /// Integral time of the compaction's servo, steps (0: proportional only; docs/models/pack.md)
     #[arg(long, value_name = "STEPS", default_value_t = 2000)]
     servo_integral: u64,
     /// Steps allowed in all
@@ -249,7 +252,7 @@ fn main() -> ExitCode {
 
 /// The templates: every object of the stream, checked closed and outward, as its hull's shape.
 fn templates() -> anyhow::Result<Vec<Shape>> {
-    let objects = shared::obj::read_all(cli::stdin()).context("reading the templates")?;
+    let objects = shared::geometry::obj::read_all(cli::stdin()).context("reading the templates")?;
     cli::require_objects(objects.len() as u64)?;
     objects
         .iter()
@@ -261,25 +264,29 @@ fn templates() -> anyhow::Result<Vec<Shape>> {
         .collect()
 }
 
+/// A pack error as the user of this tool meets it: a parameter by its option's name.
+fn flagged(e: PackError) -> anyhow::Error {
+    match e {
+        PackError::Param { field, rule } => anyhow::anyhow!("--{} {rule}", field.replace('_', "-")),
+        e @ PackError::Crowded(..) => anyhow::anyhow!("{e} (lower --cloud-fraction)"),
+        e @ PackError::NotSettled { .. } => anyhow::anyhow!("{e} (raise --max-steps)"),
+        e => e.into(),
+    }
+}
+
 fn run(args: Cli) -> anyhow::Result<()> {
     if args.every == 0 {
         bail!("--every must be at least 1");
     }
-    for (name, v) in [
-        ("--density", args.density),
-        ("--kn", args.kn),
-        ("--ks", args.ks),
-    ] {
-        if !(v > 0.0 && v.is_finite()) {
-            bail!("{name} must be a positive number, got {v}");
-        }
-    }
-    if !(args.friction >= 0.0 && args.friction.is_finite()) {
-        bail!("--friction must be 0 or more, got {}", args.friction);
-    }
-    if !(0.0..1.0).contains(&args.damping) {
-        bail!("--damping must be in [0, 1), got {}", args.damping);
-    }
+    let material = Material {
+        density: args.density,
+        kn: args.kn,
+        ks: args.ks,
+        friction: args.friction,
+        wall_friction: 0.0,
+        damping: args.damping,
+    };
+    material.check().map_err(|e| anyhow::anyhow!("--{e}"))?;
     let container = match args.container {
         Vessel::Cylinder => {
             if args.width.is_some() || args.depth.is_some() {
@@ -311,14 +318,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         pressure: args.pressure,
         prep_friction: args.prep_friction.unwrap_or(0.1),
         prep_damping: args.prep_damping,
-        material: Material {
-            density: args.density,
-            kn: args.kn,
-            ks: args.ks,
-            friction: args.friction,
-            wall_friction: 0.0,
-            damping: args.damping,
-        },
+        material,
         seed: args.seed,
         safety: args.safety,
         inertia_scaling: !args.no_inertia_scaling,
@@ -350,7 +350,8 @@ fn run(args: Cli) -> anyhow::Result<()> {
             args.loose_friction,
             args.every,
             report_calibration,
-        )?;
+        )
+        .map_err(flagged)?;
         let secs = clock.elapsed().as_secs_f64();
         eprintln!(
             "pack: void-ratio limits on {} particles (scale {}): e_min {:.4} (friction 0), e_max {:.4} (friction {}) in {secs:.1} s; --void-ratio-limits {:.4},{:.4}",
@@ -378,7 +379,8 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 args.calibration_runs,
                 args.every,
                 report_calibration,
-            )?;
+            )
+            .map_err(flagged)?;
             eprintln!(
                 "pack: calibration on {} particles: e_min {:.4} (friction 0), e_max {:.4} (friction {}), runs {:?}; preparation friction {:.4} for Dr {dr}",
                 c.limits.particles, c.limits.e_min, c.limits.e_max, c.limits.loose_friction, c.runs, c.prep_friction
@@ -405,7 +407,8 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 args.refine_runs,
                 args.every,
                 |f, s| report_run("refinement", f, s),
-            )?;
+            )
+            .map_err(flagged)?;
             eprintln!(
                 "pack: refinement at full size: target e {:.4}, runs {:?}; preparation friction {:.4}",
                 r.target, r.runs, r.prep_friction
@@ -415,9 +418,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
         }
         _ => None,
     };
-    let mut world = pack::cloud(shapes, &params)?;
+    let mut world = pack::cloud(shapes, &params).map_err(flagged)?;
     let prep_dt = world.dt;
-    let cloud = pack::container(&world).context("the loose cloud has no container")?;
+    let cloud = boundary::container(&world).context("the loose cloud has no container")?;
     eprintln!(
         "pack: {} particles of {} templates in a loose cloud {}; time step {:.4e} s",
         world.bodies.len(),
@@ -427,7 +430,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
     );
     let mut snapshots = match &args.vtk {
         Some(dir) => Some(
-            shared::dem::vtk::Snapshots::new(dir)
+            shared::dem::io::vtk::Snapshots::new(dir)
                 .with_context(|| format!("creating {}", dir.display()))?,
         ),
         None => None,
@@ -445,7 +448,8 @@ fn run(args: Cli) -> anyhow::Result<()> {
         if let (Some(v), None) = (snapshots.as_mut(), &vtk_error) {
             vtk_error = v.write(w).err();
         }
-    })?;
+    })
+    .map_err(flagged)?;
     if let Some(e) = vtk_error {
         return Err(e).context("writing a VTK snapshot");
     }
@@ -477,7 +481,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
     if let Some(r) = &refinement {
         line["refinement"] = serde_json::to_value(r)?;
     }
-    let specimen = pack::container(&world).context("the specimen has no container")?;
+    let specimen = boundary::container(&world).context("the specimen has no container")?;
     eprintln!(
         "pack: {} particles, {}: porosity {:.4}, void ratio {:.4}, coordination {:.3} ({:.3} without rattlers)",
         summary.particles, specimen.describe(), summary.porosity, summary.void_ratio,

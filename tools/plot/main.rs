@@ -3,7 +3,7 @@
 use anyhow::{bail, Context};
 use clap::Parser;
 use shared::cli;
-use shared::plot::{self, Chart, Series};
+use shared::draw::plot::{self, Chart, Series};
 use std::process::ExitCode;
 
 const EXAMPLES: &str = "\

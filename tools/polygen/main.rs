@@ -4,9 +4,9 @@ use anyhow::Context;
 use clap::Parser;
 use rayon::prelude::*;
 use shared::cli;
-use shared::mesh::PolyMesh;
-use shared::obj::ObjWriter;
-use shared::polygen::{self, Params, Redraws};
+use shared::geometry::mesh::PolyMesh;
+use shared::geometry::obj::ObjWriter;
+use shared::geometry::polygen::{self, Params, Redraws};
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -20,7 +20,7 @@ Each object is named pK_I (K faces, index I) and carries '#@ k= seed= index= red
 elongation=' attributes. Face i lies in the tangent plane at random point i. A draw is redrawn
 when the polyhedron is unbounded (the points do not surround the centre), degenerate (two points
 closer than 1e-6 R) or longer than --max-elongation; the total is the last comment line.
-See docs/obj-stream.md and docs/polygen.md.";
+See docs/formats/obj-stream.md and docs/models/polygen.md.";
 
 /// Random convex polyhedra: k points uniform on a sphere of radius R, the polyhedron is the
 /// intersection of the half-spaces below their tangent planes (exact polar dual of the points'
@@ -114,7 +114,7 @@ fn construction(poly: &PolyMesh, points: &[shared::math::Vec3], r: f64) -> Vec<P
     let cell_a = format!("{}: sphere and tangent planes", poly.name);
     let cell_b = format!("{}: polyhedron", poly.name);
     let mut out = Vec::new();
-    let mut sphere = shared::render::uv_sphere(r, 24, 48);
+    let mut sphere = shared::draw::render::uv_sphere(r, 24, 48);
     sphere.name = format!("{cell_a}/sphere");
     sphere.attrs.set("color", "c8c8d2");
     sphere.attrs.set("edges", "no");

@@ -2,8 +2,8 @@
 
 use clap::Parser;
 use shared::cli;
-use shared::obj;
-use shared::render::{self, Options};
+use shared::draw::render::{self, Options};
+use shared::geometry::obj;
 use std::process::ExitCode;
 
 const EXAMPLES: &str = "\

@@ -4,8 +4,8 @@ use anyhow::Context;
 use clap::{Parser, ValueEnum};
 use serde::Serialize;
 use shared::cli::{self, Emit};
-use shared::hull::convex_hull;
-use shared::mass::MassProps;
+use shared::geometry::hull::convex_hull;
+use shared::geometry::mass::MassProps;
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -62,7 +62,7 @@ fn main() -> ExitCode {
     cli::run("roundness", || run(Cli::parse()))
 }
 
-fn measure(obj: shared::obj::ObjObject) -> anyhow::Result<Row> {
+fn measure(obj: shared::geometry::obj::ObjObject) -> anyhow::Result<Row> {
     let what = || format!("object '{}' (line {})", obj.mesh.name, obj.line);
     let m = &obj.mesh;
     let props = cli::solid(&obj)?;

@@ -3,7 +3,7 @@
 use anyhow::{bail, Context};
 use clap::Parser;
 use shared::cli;
-use shared::hull;
+use shared::geometry::hull;
 use std::process::ExitCode;
 
 const EXAMPLES: &str = "\

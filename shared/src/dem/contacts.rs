@@ -10,16 +10,27 @@
 //! took 4 to 5 % of a step on 2 threads, all of it serial. How the list is cut into parts
 //! changes no result: it compares, iterates and indexes as one sequence.
 
-use super::structure::Packed;
-use super::world::{Contact, ContactKey};
+use crate::dem::collision::kept::Packed;
+use crate::dem::law::Contact;
 use rayon::prelude::*;
+
+/// What a body touches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Partner {
+    Body(u32),
+    Wall(u32),
+}
+
+/// Key of a contact: (partner, body), the body being B (the normal points to it). For body pairs
+/// the partner has the lower index.
+pub type ContactKey = (Partner, u32);
 
 /// Contacts by key, ascending. Iterates like a map: `for (key, contact) in &contacts`.
 ///
-/// Each contact may also keep its overlap's structure ([`super::structure`]), to start the next
+/// Each contact may also keep its overlap's structure ([`crate::dem::collision::kept`]), to start the next
 /// step's contact geometry from. That is not state (the result is the same without it): it is
 /// left out of comparisons, and a contact inserted by hand has none. The structures' words lie
-/// in one buffer, in key order ([`super::structure::Structure`] tells why).
+/// in one buffer, in key order ([`crate::dem::collision::kept::Structure`] tells why).
 #[derive(Clone, Debug, Default)]
 pub struct Contacts {
     /// Non-empty parts, each key below the next part's first.
@@ -416,7 +427,7 @@ impl<'a> IntoIterator for &'a Contacts {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dem::world::Partner;
+    use crate::dem::contacts::Partner;
     use crate::math::Vec3;
 
     fn contact(depth: f64) -> Contact {

@@ -1,26 +1,29 @@
-//! The DEM engine for rigid convex polyhedra (work in progress; see issue "DEM engine").
+//! The discrete element engine for rigid convex polyhedra.
 //!
-//! - [`shape`]: convex templates in their principal frame.
-//! - [`gjk`]: a certified separation test for pairs whose boxes overlap.
-//! - [`overlap`]: contact geometry from the overlap polyhedron (normal, depth, point).
-//! - [`spread`]: a step's loops over the pool's threads.
-//! - [`structure`]: the overlap polyhedron by its corners, kept from step to step.
-//! - [`world`]: bodies, walls, the contact law, the integrator and the energy audit.
-//! - [`state`]: scenes and restartable states as JSON lines.
-//! - [`peer`]: the Yade peer benchmark's scene format.
-//! - [`vtk`]: snapshots for ParaView.
-//! - [`wall`]: planes, facets with moving nodes, cylinders.
+//! A [`world::World`] holds shapes, bodies, walls and contacts; [`world::World::step`] advances
+//! it by one time step:
+//! 1. walls move ([`wall`]);
+//! 2. bodies are posed and paired by their boxes ([`collision::broad`]), pairs proven apart are
+//!    skipped ([`collision::gaps`], [`collision::gjk`]);
+//! 3. touching pairs get their overlap polyhedron ([`collision::overlap`], its structure kept
+//!    from step to step by [`collision::kept`]) and the contact law's forces ([`law`]);
+//! 4. each body sums its forces and moves ([`integrate`]); the contact list ([`contacts`]) and
+//!    the energy audit ([`energy`]) are made beside it.
+//!
+//! Loops run on rayon's pool in an order that does not depend on the thread count
+//! ([`parallel`]). Scenes and states are read and written by [`io`].
+//!
+//! Conventions: SI units; a contact's normal points from its partner (body A, the lower id, or
+//! the wall) to its body B; forces stored on a contact act on B.
 
-pub mod broad;
+pub mod collision;
 pub mod contacts;
-pub mod gjk;
-pub mod overlap;
-pub mod peer;
+pub mod energy;
+pub mod integrate;
+pub mod io;
+pub mod law;
+pub mod parallel;
 pub mod scenes;
 pub mod shape;
-pub mod spread;
-pub mod state;
-pub mod structure;
-pub mod vtk;
 pub mod wall;
 pub mod world;

@@ -1,24 +1,25 @@
-//! Scenes the tests and benchmarks share: issue "DEM engine" test 6's box of 200 mixed
+//! Scenes the tests and benchmarks share: the box of 200 mixed
 //! polyhedra (the nine I_P templates of 6 to 14 faces and their Ab_3 hulls, `polygen --faces
 //! 6..14 --seed 7`), rained into a box, and a run that follows its energy audit.
 
-use super::shape::Shape;
-use super::wall::Wall;
-use super::world::{Material, World};
-use crate::mass::equivalent_diameter;
+use crate::dem::law::Material;
+use crate::dem::shape::Shape;
+use crate::dem::wall::Wall;
+use crate::dem::world::World;
+use crate::geometry::mass::equivalent_diameter;
+use crate::geometry::polygen::{generate, Params};
+use crate::geometry::subdiv::subdivide;
 use crate::math::Vec3;
-use crate::polygen::{generate, Params};
-use crate::subdiv::subdivide;
 use nalgebra::UnitQuaternion;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Bodies in the box scene.
 pub const BODIES: usize = 200;
-/// Simulated time of test 6: the grid falls and piles up.
+/// Simulated time of the box scene: the grid falls and piles up.
 pub const T: f64 = 0.45;
 
-/// Test 6's soft contacts (kn = 1e5 N/m, ks = kn / 2; the paper's otherwise): conservation does
+/// The box scene's soft contacts (kn = 1e5 N/m, ks = kn / 2; the paper's otherwise): conservation does
 /// not depend on the stiffness, and a 30x larger time step than at 1e8 keeps the run to seconds.
 pub fn soft() -> Material {
     Material {
@@ -28,7 +29,7 @@ pub fn soft() -> Material {
     }
 }
 
-/// Test 6's dissipative half: `material` with wall friction 0.5 too (friction and damping as
+/// The box scene's dissipative half: `material` with wall friction 0.5 too (friction and damping as
 /// given).
 pub fn dissipative(material: Material) -> Material {
     Material {
@@ -37,7 +38,7 @@ pub fn dissipative(material: Material) -> Material {
     }
 }
 
-/// Test 6's conservative half: `material` without friction or damping.
+/// The box scene's conservative half: `material` without friction or damping.
 pub fn conservative(material: Material) -> Material {
     Material {
         friction: 0.0,
@@ -122,7 +123,7 @@ pub struct Run {
     pub steps: u64,
 }
 
-/// Runs `w` for `t` seconds, following the audit's balance ([`super::world::Energy::balance`]).
+/// Runs `w` for `t` seconds, following the audit's balance ([`crate::dem::energy::Energy::balance`]).
 pub fn run(mut w: World, t: f64) -> Run {
     w.step();
     let start = w.energy.balance();

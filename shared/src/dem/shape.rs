@@ -6,11 +6,11 @@
 //! the source mesh's frame. A body scales it uniformly: lengths by `s`, volume by `s^3`, moments
 //! per unit density by `s^5`.
 
-use crate::hull::{self, HullError};
-use crate::mass::MassProps;
+use crate::geometry::hull::{self, HullError};
+use crate::geometry::mass::MassProps;
+use crate::geometry::mesh::PolyMesh;
+use crate::geometry::subdiv::subdivide;
 use crate::math::{Mat3, Vec3};
-use crate::mesh::PolyMesh;
-use crate::subdiv::subdivide;
 use nalgebra::{Rotation3, SymmetricEigen, UnitQuaternion};
 use thiserror::Error;
 
@@ -407,7 +407,7 @@ impl Shape {
     /// The largest top eigenvalue over the vertices `v` of `M^-1/2 (|v|^2 - v v^T) M^-1/2`, `M`
     /// the principal moments per unit density: how fast a spring at a vertex can turn the body
     /// (`omega^2` per unit stiffness, at unit scale and density; see
-    /// [`super::world::World::critical_dt`]). At most `radius^2 / moments.min()`, and equal to
+    /// [`crate::dem::world::World::critical_dt`]). At most `radius^2 / moments.min()`, and equal to
     /// it for equal moments.
     pub fn rotation_rate(&self) -> f64 {
         let d = Mat3::from_diagonal(&self.moments.map(|m| 1.0 / m.sqrt()));
@@ -715,7 +715,7 @@ fn plane_offset(d: f64, n: &Vec3, pos: &Vec3, scale: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::cube;
+    use crate::geometry::mesh::cube;
     use approx::assert_relative_eq;
 
     /// Odometer readings are whole units: a metre on, a million steps of 1e-13 m read back as
@@ -746,10 +746,10 @@ mod tests {
     /// pose's, by no more than its padding.
     #[test]
     fn a_large_hull_posed_for_contacts_gives_the_full_poses_numbers() {
-        use crate::polygen::{generate, Params};
+        use crate::geometry::polygen::{generate, Params};
         let mesh = generate(&Params::default(), 3, 0).unwrap().mesh;
         let topo = mesh.topology(None).unwrap();
-        let s = Shape::from_mesh(&crate::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
+        let s = Shape::from_mesh(&crate::geometry::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
         assert!(
             s.climb.is_some(),
             "not a large hull: {} vertices",
@@ -814,7 +814,7 @@ mod tests {
     /// body.
     #[test]
     fn grouped_plane_clearances_bound_a_full_scan() {
-        use crate::polygen::{generate, Params};
+        use crate::geometry::polygen::{generate, Params};
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         for faces in [6, 9, 14] {
@@ -824,7 +824,7 @@ mod tests {
             };
             let mesh = generate(&params, 5, 0).unwrap().mesh;
             let topo = mesh.topology(None).unwrap();
-            let s = Shape::from_mesh(&crate::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
+            let s = Shape::from_mesh(&crate::geometry::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
             let climb = s.climb.as_ref().expect("a large hull");
             for _ in 0..400 {
                 let v = s.vertices[rng.random_range(0..s.vertices.len())];
@@ -859,10 +859,10 @@ mod tests {
     /// Each face's sphere holds its polygon.
     #[test]
     fn face_spheres_hold_their_faces() {
-        use crate::polygen::{generate, Params};
+        use crate::geometry::polygen::{generate, Params};
         let mesh = generate(&Params::default(), 3, 0).unwrap().mesh;
         let topo = mesh.topology(None).unwrap();
-        let s = Shape::from_mesh(&crate::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
+        let s = Shape::from_mesh(&crate::geometry::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
         let climb = s.climb.as_ref().expect("a large hull");
         for f in 0..s.face_count() {
             let (c, r) = climb.face_spheres[f];
@@ -941,7 +941,8 @@ mod tests {
         // (v x n) . M^-1 (v x n); its largest over many directions and all vertices.
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let rod = Shape::from_mesh(&crate::mesh::cuboid(Vec3::new(0.6, 0.15, 0.1))).unwrap();
+        let rod =
+            Shape::from_mesh(&crate::geometry::mesh::cuboid(Vec3::new(0.6, 0.15, 0.1))).unwrap();
         let cube_shape = Shape::from_mesh(&cube(0.5)).unwrap();
         for s in [&rod, &cube_shape] {
             let mut best: f64 = 0.0;

@@ -4,7 +4,7 @@
 //! A body touching a wall makes one contact with it, whatever the number of facets under it.
 //! Each facet is the solid prism behind it (its triangle extruded against its normal by the
 //! body's diameter); the body's overlap with each prism comes from the overlap polyhedron
-//! ([`super::overlap`]), and the pieces are summed: volume `V`, centroid, and the contact area
+//! ([`crate::dem::collision::overlap`]), and the pieces are summed: volume `V`, centroid, and the contact area
 //! `S` = the sum of the facets' caps (each facet's area inside the body, along its normal).
 //! Then as for bodies: normal `S / |S|`, depth `V / |S|`, point at the centroid. A flat face
 //! crossing from one facet to its coplanar neighbour sees no change at all; the force is shared
@@ -16,7 +16,7 @@
 //! apart from each other, and each spot then pushes as a contact of its own ([`spots`]); the
 //! contact reports their sum, with the couple that makes up their moment. Summing the spots
 //! into one `V / |S|` at their joint centroid is not the gradient of any energy, and it fed
-//! energy into particles wedged against a specimen's cylinder (docs/pack.md). Where two spots
+//! energy into particles wedged against a specimen's cylinder (docs/models/pack.md). Where two spots
 //! join, as a facet between them starts to overlap when the body presses or slides, the force
 //! jumps from the two spots' sum to the joint spot's: the particle of
 //! `tests/fixtures/wedged-on-cylinder.jsonl` did so 220 times in 20 000 steps, and its audit
@@ -27,12 +27,12 @@
 //! the facets within reach of a body are built. Each spot's normal is the radius through its
 //! centroid, so that it makes no moment about the axis.
 
-use super::broad::overlap as overlap_boxes;
-use super::overlap::{
+use crate::dem::collision::broad::overlap as overlap_boxes;
+use crate::dem::collision::overlap::{
     overlap_behind_facet, overlap_half_space_kept, overlap_half_space_within, overlap_parts,
     reach_along, Beyond, Overlap, WallFound,
 };
-use super::shape::{Posed, Shape};
+use crate::dem::shape::{Posed, Shape};
 use crate::math::{basis, box_excess, Vec3};
 use nalgebra::UnitQuaternion;
 use std::sync::OnceLock;
@@ -103,8 +103,8 @@ impl Spot {
 /// wall (inside a cylinder) at spots apart from each other, and each pushes as a contact of its
 /// own, `kn d_g n_g` at its centroid `c_g` (`d_g = V_g / |S_g|`). Summing the spots' volumes
 /// and areas into one `V / |S|` at their joint centroid instead is not the gradient of any
-/// energy: a 10 mm particle wedged against the cylinder drew energy from it (docs/pack.md,
-/// "What kept the equilibrium from settling"). The result's depth is `|sum d_g n_g|`, its
+/// energy: a 10 mm particle wedged against the cylinder drew energy from it (docs/models/walls.md,
+/// "Spots"). The result's depth is `|sum d_g n_g|`, its
 /// normal that sum's direction, its point the depth-weighted mean of the centroids, and the
 /// couple `sum (c_g - point) x d_g n_g` makes up the spots' moment.
 fn spots(spots: &[Spot]) -> (Overlap, Vec3, Vec3) {
@@ -803,7 +803,8 @@ fn prism(k: usize) -> &'static Shape {
             face_verts.extend(f);
             face_start.push(face_verts.len() as u32);
         }
-        let (vertex_face_start, vertex_faces) = super::shape::incidence(&face_start, &face_verts);
+        let (vertex_face_start, vertex_faces) =
+            crate::dem::shape::incidence(&face_start, &face_verts);
         Shape {
             name: format!("prism{k}"),
             vertices: Vec::new(),
@@ -868,7 +869,7 @@ fn facet_overlap_with<const K: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::cube;
+    use crate::geometry::mesh::cube;
     use approx::assert_relative_eq;
 
     fn cube_at(p: Vec3) -> (Shape, Posed) {
@@ -913,11 +914,12 @@ mod tests {
         use rand::{RngCore, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
         let mut u = move || crate::math::unit_f64(rng.next_u64());
-        let polyhedron = crate::polygen::generate(&crate::polygen::Params::default(), 3, 0)
-            .unwrap()
-            .mesh;
+        let polyhedron =
+            crate::geometry::polygen::generate(&crate::geometry::polygen::Params::default(), 3, 0)
+                .unwrap()
+                .mesh;
         let topo = polyhedron.topology(None).unwrap();
-        let hull = crate::subdiv::subdivide(&polyhedron, &topo, 3);
+        let hull = crate::geometry::subdiv::subdivide(&polyhedron, &topo, 3);
         let shapes = [
             Shape::from_mesh(&cube(0.5)).unwrap(),
             Shape::from_mesh(&polyhedron).unwrap(),
@@ -1160,7 +1162,8 @@ mod tests {
         // over many facets, cross the seam at angle 0, and in the small tube hold its axis.
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let rod = Shape::from_mesh(&crate::mesh::cuboid(Vec3::new(0.6, 0.1, 0.1))).unwrap();
+        let rod =
+            Shape::from_mesh(&crate::geometry::mesh::cuboid(Vec3::new(0.6, 0.1, 0.1))).unwrap();
         let (mut hits, mut spots) = (0, 0);
         for (r_cyl, segments) in [(1.0, 32u32), (0.25, 16)] {
             let cyl = Wall::cylinder(Vec3::zeros(), Vec3::z(), r_cyl, 2.0, segments);
@@ -1283,8 +1286,9 @@ mod tests {
         // gradient (4.9 % circulatory here, the linear law's own for the tilted plate's
         // edges). One push of the summed volume and area at the joint centroid was not: 52 %,
         // and it fed energy into a particle wedged against a pack specimen's cylinder
-        // (docs/pack.md, "What kept the equilibrium from settling").
-        let plate = Shape::from_mesh(&crate::mesh::cuboid(Vec3::new(0.3, 0.02, 0.1))).unwrap();
+        // (docs/models/walls.md, "Spots").
+        let plate =
+            Shape::from_mesh(&crate::geometry::mesh::cuboid(Vec3::new(0.3, 0.02, 0.1))).unwrap();
         let cyl = Wall::cylinder(Vec3::new(0.0, 0.0, -1.0), Vec3::z(), 1.0, 2.0, 128);
         let inscribed = (std::f64::consts::PI / 128.0).cos();
         // Tilted and turned a little, so the two ends sink by different depths.

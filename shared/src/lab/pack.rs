@@ -1,6 +1,6 @@
 //! Dense, isotropically consolidated specimens of polyhedra (the `pack` tool).
 //!
-//! The preparation, step by step (docs/pack.md tells why each choice):
+//! The preparation, step by step (docs/models/pack.md tells why each choice):
 //! 1. **Sizes.** Particle `i` is template `i mod T`, its size drawn uniformly between
 //!    `size_min` and `size_max` ([`SizeMeasure`]: equivalent-sphere diameter by default). Unless
 //!    a count is given, particles are drawn until their solid volume fills the container at
@@ -27,27 +27,27 @@
 //!
 //! Steps 3 and 4 run with density scaling ([`scale_inertia`]) unless `inertia_scaling` is off.
 
-use crate::dem::gjk;
+use super::boundary::{
+    bounds, core_porosity, mean_stress, porosity, porosity_of, solid_volume, stresses_in,
+    wall_stresses, Bounds, Section,
+};
+use super::inertia::{restore_inertia, scale_inertia};
+use super::servo::{servo, set_speeds, ServoLaw};
+use crate::dem::collision::gjk;
+use crate::dem::contacts::Partner;
+use crate::dem::law::Material;
 use crate::dem::shape::Shape;
-use crate::dem::wall::{Wall, WallKind};
-use crate::dem::world::{Material, Partner, World};
-use crate::mass::{clipped_volume, equivalent_diameter};
-use crate::math::{box_excess, cube, square, Vec3};
-use nalgebra::{Quaternion, UnitQuaternion};
+use crate::dem::world::World;
+use crate::geometry::mass::equivalent_diameter;
+use crate::math::{cube, random_rotation, square, Vec3};
+use crate::micro::fabric::anisotropy;
+use nalgebra::UnitQuaternion;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use std::collections::HashMap;
 use std::f64::consts::PI;
 use thiserror::Error;
-
-/// The bottom platen's index among the walls (a plane, normal +z).
-pub const BOTTOM: usize = 0;
-/// The top platen's index (a plane, normal -z).
-pub const TOP: usize = 1;
-/// The cylinder wall's index; in a box, the first of the four side planes (normals +x, -x,
-/// +y, -y).
-pub const SIDE: usize = 2;
 
 /// The container's shape.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -177,6 +177,10 @@ impl Default for Params {
 pub enum PackError {
     #[error("no templates (expected an OBJ stream of particle shapes)")]
     NoTemplates,
+    /// A parameter out of its range: the [`Params`] field (or the function's argument) and
+    /// what it must be.
+    #[error("{field} {rule}")]
+    Param { field: &'static str, rule: String },
     #[error("{0}")]
     Bad(String),
     #[error("a particle of size {size} m ({measure:?}) spans {span:.4} m, more than the container's {what} of {limit} m")]
@@ -187,9 +191,9 @@ pub enum PackError {
         what: &'static str,
         limit: f64,
     },
-    #[error("could not place particle {0} of the loose cloud without overlap after {1} tries, even in a container twice the size (lower --cloud-fraction)")]
+    #[error("could not place particle {0} of the loose cloud without overlap after {1} tries, even in a container twice the size")]
     Crowded(usize, usize),
-    #[error("not in equilibrium after {steps} steps ({phase}): wall stresses {stresses:?} Pa against {target} Pa, unbalanced-force ratio {unbalanced:.3e} (raise --max-steps)")]
+    #[error("not in equilibrium after {steps} steps ({phase}): wall stresses {stresses:?} Pa against {target} Pa, unbalanced-force ratio {unbalanced:.3e}")]
     NotSettled {
         steps: u64,
         phase: &'static str,
@@ -200,41 +204,57 @@ pub enum PackError {
 }
 
 impl Params {
+    /// The servo law of the preparation's walls.
+    pub fn servo_law(&self) -> ServoLaw {
+        ServoLaw {
+            pressure: self.pressure,
+            gain: self.gain,
+            max_strain_rate: self.max_strain_rate,
+            loose_strain_rate: self.loose_strain_rate,
+            integral_steps: self.integral_steps,
+            tolerance: self.tolerance,
+        }
+    }
+
     fn check(&self) -> Result<(), PackError> {
         let across = match self.container {
-            Container::Cylinder => vec![("--diameter", self.diameter)],
-            Container::Box => vec![("--width", self.width), ("--depth", self.depth)],
+            Container::Cylinder => vec![("diameter", self.diameter)],
+            Container::Box => vec![("width", self.width), ("depth", self.depth)],
         };
         let positive = across.into_iter().chain([
-            ("--height", self.height),
-            ("--size-min", self.size_min),
-            ("--size-max", self.size_max),
-            ("--pressure", self.pressure),
-            ("--max-strain-rate", self.max_strain_rate),
-            ("--loose-strain-rate", self.loose_strain_rate),
-            ("--unbalanced", self.unbalanced),
-            ("--prep-unbalanced", self.prep_unbalanced),
-            ("--tolerance", self.tolerance),
+            ("height", self.height),
+            ("size_min", self.size_min),
+            ("size_max", self.size_max),
+            ("pressure", self.pressure),
+            ("max_strain_rate", self.max_strain_rate),
+            ("loose_strain_rate", self.loose_strain_rate),
+            ("unbalanced", self.unbalanced),
+            ("prep_unbalanced", self.prep_unbalanced),
+            ("tolerance", self.tolerance),
         ]);
         for (name, v) in positive {
             if !(v > 0.0 && v.is_finite()) {
-                return Err(PackError::Bad(format!(
-                    "{name} must be a positive number, got {v}"
-                )));
+                return Err(PackError::Param {
+                    field: name,
+                    rule: format!("must be a positive number, got {v}"),
+                });
             }
         }
         if self.size_min > self.size_max {
-            return Err(PackError::Bad(format!(
-                "--size-min {} is above --size-max {}",
-                self.size_min, self.size_max
-            )));
+            return Err(PackError::Param {
+                field: "size_min",
+                rule: format!(
+                    "{} is above the largest size {}",
+                    self.size_min, self.size_max
+                ),
+            });
         }
         let unit = [
-            ("--porosity", self.porosity, false),
-            ("--cloud-fraction", self.cloud_fraction, false),
-            ("--prep-damping", self.prep_damping, true),
-            ("--gain", self.gain, false),
-            ("--safety", self.safety, false),
+            ("porosity", self.porosity, false),
+            ("cloud_fraction", self.cloud_fraction, false),
+            ("prep_damping", self.prep_damping, true),
+            ("gain", self.gain, false),
+            ("safety", self.safety, false),
         ];
         for (name, v, zero) in unit {
             let ok = if zero {
@@ -243,28 +263,38 @@ impl Params {
                 v > 0.0 && v < 1.0
             };
             if !ok {
-                return Err(PackError::Bad(format!("{name} must be in (0, 1), got {v}")));
+                return Err(PackError::Param {
+                    field: name,
+                    rule: format!("must be in (0, 1), got {v}"),
+                });
             }
         }
         if !(self.prep_friction >= 0.0 && self.prep_friction.is_finite()) {
-            return Err(PackError::Bad(format!(
-                "--prep-friction must be a friction coefficient of 0 or more, got {}",
-                self.prep_friction
-            )));
+            return Err(PackError::Param {
+                field: "prep_friction",
+                rule: format!(
+                    "must be a friction coefficient of 0 or more, got {}",
+                    self.prep_friction
+                ),
+            });
         }
         if self.count == Some(0) {
-            return Err(PackError::Bad("--count must be at least 1".into()));
+            return Err(PackError::Param {
+                field: "count",
+                rule: "must be at least 1".into(),
+            });
         }
         if self.count.is_some_and(|n| n > MAX_PARTICLES) {
-            return Err(PackError::Bad(format!(
-                "--count must be at most {MAX_PARTICLES}"
-            )));
+            return Err(PackError::Param {
+                field: "count",
+                rule: format!("must be at most {MAX_PARTICLES}"),
+            });
         }
         if self.segments < 16 {
-            return Err(PackError::Bad(format!(
-                "--segments must be at least 16, got {}",
-                self.segments
-            )));
+            return Err(PackError::Param {
+                field: "segments",
+                rule: format!("must be at least 16, got {}", self.segments),
+            });
         }
         Ok(())
     }
@@ -301,190 +331,8 @@ impl Params {
     }
 }
 
-/// A container's cross-section.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Section {
-    /// The prism of `segments` facets inscribed in the circle of `radius` about the z axis.
-    Circle { radius: f64, segments: u32 },
-    /// From `x[0]` to `x[1]` and `y[0]` to `y[1]`.
-    Rect { x: [f64; 2], y: [f64; 2] },
-}
-
-/// A container's inside: its cross-section, from z = `bottom` to `top`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Bounds {
-    pub section: Section,
-    pub bottom: f64,
-    pub top: f64,
-}
-
-/// What the servo needs of one wall: its area, its distance from the container's middle, and
-/// its share of the mean stress.
-struct WallGeometry {
-    area: f64,
-    half: f64,
-    weight: f64,
-}
-
-impl Bounds {
-    pub fn height(&self) -> f64 {
-        self.top - self.bottom
-    }
-
-    /// The cross-section's area (the cylinder's: its facet polygon's).
-    pub fn area(&self) -> f64 {
-        match self.section {
-            Section::Circle { radius, segments } => {
-                let n = f64::from(segments);
-                0.5 * n * radius * radius * (2.0 * PI / n).sin()
-            }
-            Section::Rect { x, y } => (x[1] - x[0]) * (y[1] - y[0]),
-        }
-    }
-
-    /// The cross-section's perimeter (the cylinder's: its facet polygon's).
-    fn perimeter(&self) -> f64 {
-        match self.section {
-            Section::Circle { radius, segments } => {
-                let n = f64::from(segments);
-                2.0 * n * radius * (PI / n).sin()
-            }
-            Section::Rect { x, y } => 2.0 * ((x[1] - x[0]) + (y[1] - y[0])),
-        }
-    }
-
-    /// Whether `x` is inside, at least `margin` from every wall (a negative margin lets it
-    /// out by as much). The cylinder's wall is its circle, not its facets.
-    pub fn holds(&self, x: &Vec3, margin: f64) -> bool {
-        let across = match self.section {
-            Section::Circle { radius, .. } => x.xy().norm() < radius - margin,
-            Section::Rect { x: xs, y: ys } => {
-                x.x > xs[0] + margin
-                    && x.x < xs[1] - margin
-                    && x.y > ys[0] + margin
-                    && x.y < ys[1] - margin
-            }
-        };
-        across && x.z > self.bottom + margin && x.z < self.top - margin
-    }
-
-    /// A uniformly random point of the cross-section's bounding rectangle, at a uniformly random
-    /// height.
-    fn draw(&self, rng: &mut ChaCha8Rng) -> Vec3 {
-        let (x, y) = match self.section {
-            Section::Circle { radius, .. } => ([-radius, radius], [-radius, radius]),
-            Section::Rect { x, y } => (x, y),
-        };
-        Vec3::new(
-            rng.random_range(x[0]..=x[1]),
-            rng.random_range(y[0]..=y[1]),
-            rng.random_range(self.bottom..=self.top),
-        )
-    }
-
-    /// The same container scaled by `f` about the bottom's middle.
-    fn scaled(&self, f: f64) -> Bounds {
-        let section = match self.section {
-            Section::Circle { radius, segments } => Section::Circle {
-                radius: radius * f,
-                segments,
-            },
-            Section::Rect { x, y } => Section::Rect {
-                x: x.map(|v| v * f),
-                y: y.map(|v| v * f),
-            },
-        };
-        Bounds {
-            section,
-            bottom: self.bottom * f,
-            top: self.top * f,
-        }
-    }
-
-    /// The walls that make this container, in the order of [`Container`].
-    fn walls(&self) -> Vec<Wall> {
-        let mut walls = vec![
-            Wall::plane(Vec3::new(0.0, 0.0, self.bottom), Vec3::z()),
-            Wall::plane(Vec3::new(0.0, 0.0, self.top), -Vec3::z()),
-        ];
-        match self.section {
-            Section::Circle { radius, segments } => {
-                // Twice the height: the platens stay inside it as they move.
-                let h = self.height();
-                walls.push(Wall::cylinder(
-                    Vec3::new(0.0, 0.0, self.bottom - 0.5 * h),
-                    Vec3::z(),
-                    radius,
-                    2.0 * h,
-                    segments,
-                ));
-            }
-            Section::Rect { x, y } => {
-                walls.push(Wall::plane(Vec3::new(x[0], 0.0, 0.0), Vec3::x()));
-                walls.push(Wall::plane(Vec3::new(x[1], 0.0, 0.0), -Vec3::x()));
-                walls.push(Wall::plane(Vec3::new(0.0, y[0], 0.0), Vec3::y()));
-                walls.push(Wall::plane(Vec3::new(0.0, y[1], 0.0), -Vec3::y()));
-            }
-        }
-        walls
-    }
-
-    /// Each wall's area, distance from the middle and share of the mean stress (its
-    /// directions over 3, a platen's halved as it shares its direction with the other).
-    fn geometry(&self) -> Vec<WallGeometry> {
-        let h = self.height();
-        let platen = || WallGeometry {
-            area: self.area(),
-            half: 0.5 * h,
-            weight: 1.0 / 6.0,
-        };
-        let mut out = vec![platen(), platen()];
-        match self.section {
-            Section::Circle { radius, .. } => out.push(WallGeometry {
-                area: self.perimeter() * h,
-                half: radius,
-                weight: 2.0 / 3.0,
-            }),
-            Section::Rect { x, y } => {
-                for (side, across) in [(y[1] - y[0], x[1] - x[0]), (x[1] - x[0], y[1] - y[0])] {
-                    for _ in 0..2 {
-                        out.push(WallGeometry {
-                            area: side * h,
-                            half: 0.5 * across,
-                            weight: 1.0 / 6.0,
-                        });
-                    }
-                }
-            }
-        }
-        out
-    }
-
-    /// "0.3000 m across and 0.6000 m high", or "0.3000 x 0.3000 m and ...".
-    pub fn describe(&self) -> String {
-        let across = match self.section {
-            Section::Circle { radius, .. } => format!("{:.4} m across", 2.0 * radius),
-            Section::Rect { x, y } => format!("{:.4} x {:.4} m", x[1] - x[0], y[1] - y[0]),
-        };
-        format!("{across} and {:.4} m high", self.height())
-    }
-}
-
 /// The most particles a specimen may have.
 pub const MAX_PARTICLES: usize = 1_000_000;
-
-/// A uniformly random rotation (Shoemake's method).
-fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
-    let (u1, u2, u3): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
-    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-    let (t2, t3) = (2.0 * PI * u2, 2.0 * PI * u3);
-    UnitQuaternion::from_quaternion(Quaternion::new(
-        b * t3.cos(),
-        a * t2.sin(),
-        a * t2.cos(),
-        b * t3.sin(),
-    ))
-}
 
 /// The loose cloud (steps 1 and 2): bodies in an enlarged container, nothing touching, the
 /// preparation's friction and damping, no gravity, time step `safety` x critical.
@@ -511,7 +359,7 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
         if picks.len() == MAX_PARTICLES {
             return Err(PackError::Bad(format!(
                 "more than {MAX_PARTICLES} particles would fill the container: \
-                 raise --size-min or shrink the container"
+                 raise the smallest size or shrink the container"
             )));
         }
         let shape = (picks.len() % t) as u32;
@@ -577,42 +425,6 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
     }
     w.dt = p.safety * w.critical_dt();
     Ok(w)
-}
-
-/// Density scaling for a quasi-static preparation: raises every free body's mass, and all its
-/// moments by one factor, until its own critical steps for translation and for rotation
-/// ([`World::critical_dts`]) are both the largest translational step of any body, the one of
-/// the heaviest. Statics does not depend on inertia, and the step is then set by the big
-/// bodies that carry the packing, not by the smallest or spikiest one. Angular velocities are
-/// kept. [`restore_inertia`] undoes it.
-pub fn scale_inertia(w: &mut World) {
-    let dts = w.critical_dts();
-    let target = (dts.iter())
-        .map(|d| d.0)
-        .filter(|t| t.is_finite())
-        .fold(0.0, f64::max);
-    for (b, (t, r)) in w.bodies.iter_mut().zip(dts) {
-        if b.fixed {
-            continue;
-        }
-        let rotation = square(target / r);
-        b.mass *= square(target / t);
-        b.moments *= rotation;
-        b.ang_mom *= rotation;
-    }
-}
-
-/// Gives every body its true mass and moments back (after [`scale_inertia`]), keeping its
-/// velocity and angular velocity, and sets the time step from them.
-pub fn restore_inertia(w: &mut World, p: &Params) {
-    for i in 0..w.bodies.len() {
-        let (mass, moments) = w.inertia_of(w.bodies[i].shape, w.bodies[i].scale);
-        let b = &mut w.bodies[i];
-        b.ang_mom *= moments.x / b.moments.x;
-        b.mass = mass;
-        b.moments = moments;
-    }
-    w.dt = p.safety * w.critical_dt();
 }
 
 /// Tries per particle before [`place`] gives up.
@@ -690,150 +502,6 @@ fn place(
     Ok(poses)
 }
 
-/// The container of a specimen made by [`cloud`], as its walls are now; `None` when the walls
-/// are not a pack container (bottom and top platens, then a cylinder or four side planes).
-pub fn container(w: &World) -> Option<Bounds> {
-    let plane = |k: usize, normal: Vec3| match w.walls.get(k).map(|x| &x.kind) {
-        Some(WallKind::Plane { normal: n, offset }) if *n == normal => Some(*offset),
-        _ => None,
-    };
-    let (bottom, top) = (plane(BOTTOM, Vec3::z())?, -plane(TOP, -Vec3::z())?);
-    let section = match (w.walls.len(), w.walls.get(SIDE).map(|x| &x.kind)) {
-        (
-            3,
-            Some(WallKind::Cylinder {
-                radius, segments, ..
-            }),
-        ) => Section::Circle {
-            radius: *radius,
-            segments: *segments,
-        },
-        (6, _) => Section::Rect {
-            x: [plane(SIDE, Vec3::x())?, -plane(SIDE + 1, -Vec3::x())?],
-            y: [plane(SIDE + 2, Vec3::y())?, -plane(SIDE + 3, -Vec3::y())?],
-        },
-        _ => return None,
-    };
-    Some(Bounds {
-        section,
-        bottom,
-        top,
-    })
-}
-
-/// [`container`] of a world made by [`cloud`].
-fn bounds(w: &World) -> Bounds {
-    container(w).expect("the walls of a pack container")
-}
-
-/// Wall stresses (compression positive, Pa) and each wall's contact count, in the walls'
-/// order: a plane's the normal force over its area, the cylinder's the radial force of its
-/// contacts over its facets' area between the platens. `w` is made by [`cloud`].
-pub fn wall_stresses(w: &World) -> (Vec<f64>, Vec<usize>) {
-    let b = bounds(w);
-    stresses_in(w, &b, &b.geometry())
-}
-
-/// [`wall_stresses`] in the container `b` of these walls' `geometry`.
-fn stresses_in(w: &World, b: &Bounds, geometry: &[WallGeometry]) -> (Vec<f64>, Vec<usize>) {
-    let mut counts = vec![0usize; geometry.len()];
-    let mut radial = 0.0;
-    let first = w.contacts.lower_bound(&(Partner::Wall(0), 0));
-    for (&(partner, _), c) in w.contacts.iter().skip(first) {
-        let Partner::Wall(k) = partner else { continue };
-        let k = k as usize;
-        if let Some(n) = counts.get_mut(k) {
-            *n += 1;
-        }
-        if matches!(b.section, Section::Circle { .. }) && k == SIDE {
-            let out = Vec3::new(c.point.x, c.point.y, 0.0);
-            let len = out.norm();
-            if len > 0.0 {
-                let push = -(c.normal * c.normal_force + c.shear);
-                radial += push.dot(&out) / len;
-            }
-        }
-    }
-    let stresses = (w.walls.iter().zip(geometry))
-        .map(|(wall, g)| match &wall.kind {
-            WallKind::Plane { normal, .. } => -wall.force.dot(normal) / g.area,
-            _ => radial / g.area,
-        })
-        .collect();
-    (stresses, counts)
-}
-
-/// The walls' speeds (inward positive, m/s, in the walls' order) under PFC's servo: each wall
-/// `gain (p - sigma) A / (kn N dt)`, `N` its contacts (at least 1) and `A` its area, capped at
-/// `max_strain_rate` times the wall's distance from the middle. With `common` (the integral
-/// term, Pa), every wall moves at one strain rate instead, the smallest servo gain's acting on
-/// the mean stress's error plus the integral: the specimen shrinks alike in every direction.
-///
-/// The gain is PFC's: it takes the wall's own contacts for the spring it pushes, but that spring
-/// is in series with the whole packing, and a loose packing gives way as it rearranges: the
-/// error decays over tens of thousands of steps instead of a few. The integral, the error
-/// summed over `integral_steps`, makes up for that. It grows only while the walls are not at
-/// their cap (no wind-up while the cloud is loose) and goes back to zero when the error changes
-/// sign, so that it never drives the stress past the target.
-fn servo(
-    w: &World,
-    p: &Params,
-    geometry: &[WallGeometry],
-    stresses: &[f64],
-    counts: &[usize],
-    common: Option<&mut f64>,
-) -> Vec<f64> {
-    let (kn, dt) = (w.material.kn, w.dt);
-    let gain = |k: usize| p.gain * geometry[k].area / (kn * counts[k].max(1) as f64 * dt);
-    if let Some(integral) = common {
-        let error = p.pressure - mean_stress(geometry, stresses);
-        let g = (0..geometry.len())
-            .map(|k| gain(k) / geometry[k].half)
-            .fold(f64::INFINITY, f64::min);
-        // Particle-particle contacts come first in the list.
-        let pairs = w.contacts.lower_bound(&(Partner::Wall(0), 0));
-        let cap = if 2 * pairs < w.bodies.len() {
-            p.loose_strain_rate.max(p.max_strain_rate)
-        } else {
-            p.max_strain_rate
-        };
-        if error * *integral < 0.0 {
-            *integral = 0.0;
-        }
-        let wanted = g * (error + *integral);
-        if p.integral_steps > 0 && wanted.abs() < cap {
-            *integral += error / p.integral_steps as f64;
-        }
-        let rate = wanted.clamp(-cap, cap);
-        geometry.iter().map(|g| rate * g.half).collect()
-    } else {
-        // A wall within half the tolerance rests: a servo that chases every fluctuation
-        // keeps shaking the packing it should let settle.
-        (0..geometry.len())
-            .map(|k| {
-                let cap = p.max_strain_rate * geometry[k].half;
-                let error = p.pressure - stresses[k];
-                if error.abs() <= 0.5 * p.tolerance * p.pressure {
-                    0.0
-                } else {
-                    (gain(k) * error).clamp(-cap, cap)
-                }
-            })
-            .collect()
-    }
-}
-
-/// Moves the walls inward at `speeds` (see [`servo`]).
-fn set_speeds(w: &mut World, speeds: &[f64]) {
-    for (wall, &v) in w.walls.iter_mut().zip(speeds) {
-        match &mut wall.kind {
-            WallKind::Plane { normal, .. } => wall.velocity = *normal * v,
-            WallKind::Cylinder { radial_rate, .. } => *radial_rate = -v,
-            WallKind::Facets { .. } => {}
-        }
-    }
-}
-
 /// Where a preparation is, for progress reports.
 #[derive(Clone, Debug)]
 pub struct Status {
@@ -843,107 +511,6 @@ pub struct Status {
     pub stresses: Vec<f64>,
     pub porosity: f64,
     pub unbalanced: f64,
-}
-
-/// Solid volume of the bodies, m^3.
-fn solid_volume(w: &World) -> f64 {
-    w.bodies
-        .iter()
-        .map(|b| w.shapes[b.shape as usize].volume * cube(b.scale))
-        .sum()
-}
-
-/// Porosity of the specimen (made by [`cloud`]) in its container.
-pub fn porosity(w: &World) -> f64 {
-    porosity_of(&bounds(w), solid_volume(w))
-}
-
-/// The container's core: the prism left when every wall moves `layer` inwards, as the
-/// half-spaces `n . x <= d` that bound it and its volume; `None` when nothing is left. A
-/// cylinder's core is a polygon of as many sides as its facets (in any orientation: the sides
-/// only bound a region), its apothem `layer` shorter.
-fn core(b: &Bounds, layer: f64) -> Option<(Vec<(Vec3, f64)>, f64)> {
-    let (bottom, top) = (b.bottom + layer, b.top - layer);
-    let mut planes = vec![(-Vec3::z(), -bottom), (Vec3::z(), top)];
-    let section = match b.section {
-        Section::Circle { radius, segments } => {
-            let n = f64::from(segments);
-            let apothem = radius * (PI / n).cos() - layer;
-            planes.extend((0..segments).map(|k| {
-                let a = 2.0 * PI * f64::from(k) / n;
-                (Vec3::new(a.cos(), a.sin(), 0.0), apothem)
-            }));
-            (apothem > 0.0).then(|| Section::Circle {
-                radius: apothem / (PI / n).cos(),
-                segments,
-            })
-        }
-        Section::Rect { x, y } => {
-            let (x, y) = ([x[0] + layer, x[1] - layer], [y[0] + layer, y[1] - layer]);
-            planes.extend([
-                (-Vec3::x(), -x[0]),
-                (Vec3::x(), x[1]),
-                (-Vec3::y(), -y[0]),
-                (Vec3::y(), y[1]),
-            ]);
-            (x[0] < x[1] && y[0] < y[1]).then_some(Section::Rect { x, y })
-        }
-    }?;
-    let inset = Bounds {
-        section,
-        bottom,
-        top,
-    };
-    (bottom < top).then(|| (planes, inset.area() * inset.height()))
-}
-
-/// Porosity of the container's core, `layer` in from every wall ([`core`]): the bodies' volume
-/// inside it (each straddling body clipped exactly, [`clipped_volume`]) over its volume.
-/// It leaves out the layer along the walls, where particles pack looser against a flat surface
-/// (docs/pack.md has what it measures, small sample against specimen). `None` when the layer
-/// leaves no core. `w` is made by [`cloud`].
-pub fn core_porosity(w: &World, layer: f64) -> Option<f64> {
-    let (planes, volume) = core(&bounds(w), layer)?;
-    let solid: f64 = w
-        .bodies
-        .iter()
-        .map(|body| {
-            let s = &w.shapes[body.shape as usize];
-            let posed = s.posed(&body.pos, &body.rot, body.scale);
-            let (lo, hi) = (posed.lo, posed.hi);
-            // Wholly beyond one plane (its box is), or wholly inside all of them.
-            if (planes.iter()).any(|(n, d)| box_excess(&-n, -d, &lo, &hi) <= 0.0) {
-                return 0.0;
-            }
-            if (planes.iter()).all(|(n, d)| box_excess(n, *d, &lo, &hi) <= 0.0) {
-                return s.volume * cube(body.scale);
-            }
-            let faces: Vec<Vec<Vec3>> = (0..s.face_count())
-                .map(|f| {
-                    (s.face(f).iter())
-                        .map(|&i| posed.vertex(s, i as usize))
-                        .collect()
-                })
-                .collect();
-            clipped_volume(&faces, &planes)
-        })
-        .sum();
-    Some(1.0 - solid / volume)
-}
-
-/// [`porosity`] for bodies of `solid` volume in all.
-fn porosity_of(b: &Bounds, solid: f64) -> f64 {
-    1.0 - solid / (b.area() * b.height())
-}
-
-/// The mean of the wall stresses: `(sigma_x + sigma_y + sigma_z) / 3`, each direction's
-/// stress the mean of its walls'.
-fn mean_stress(geometry: &[WallGeometry], stresses: &[f64]) -> f64 {
-    geometry
-        .iter()
-        .zip(stresses)
-        .map(|(g, s)| g.weight * s)
-        .sum()
 }
 
 /// Steps 3 and 4 on a cloud from [`cloud`]: compacts it and brings it to equilibrium;
@@ -961,7 +528,7 @@ pub fn consolidate(
     phase(w, p, Phase::Equilibrium, start, every, &mut report)?;
     w.material.damping = p.material.damping;
     set_speeds(w, &vec![0.0; w.walls.len()]);
-    restore_inertia(w, p);
+    restore_inertia(w, p.safety);
     Ok(())
 }
 
@@ -998,7 +565,7 @@ fn phase(
     report: &mut (impl FnMut(&Status, &World) + Send),
 ) -> Result<(), PackError> {
     // The steps run on the pool (see `on_pool`).
-    crate::dem::world::on_pool(|| {
+    crate::dem::parallel::on_pool(|| {
         let (name, unbalanced) = match which {
             Phase::Compaction => ("compaction", p.prep_unbalanced),
             Phase::Equilibrium => ("equilibrium", p.unbalanced),
@@ -1057,7 +624,7 @@ fn phase(
                 });
             }
             let common = (which == Phase::Compaction).then_some(&mut integral);
-            let speeds = servo(w, p, &geometry, &stresses, &counts, common);
+            let speeds = servo(w, &p.servo_law(), &geometry, &stresses, &counts, common);
             set_speeds(w, &speeds);
             w.step();
         }
@@ -1065,7 +632,7 @@ fn phase(
 }
 
 /// The void-ratio limits of the templates and sizes, and the preparation friction for a relative
-/// density, found on a smaller sample (docs/pack.md, "Relative density").
+/// density, found on a smaller sample (docs/models/pack.md, "Relative density").
 #[derive(Clone, Debug, Serialize)]
 pub struct Calibration {
     /// The sample's limits (its scale, particles, e_min, e_max, loose friction).
@@ -1095,9 +662,10 @@ pub fn next_friction(lo: (f64, f64), hi: (f64, f64), target: f64) -> f64 {
 /// (and a `count` scaled by the volume): [`calibrate`]'s and [`void_limits`]' sample.
 fn sample(p: &Params, scale: f64) -> Result<Params, PackError> {
     if !(scale > 0.0 && scale <= 1.0) {
-        return Err(PackError::Bad(format!(
-            "--calibration-scale must be in (0, 1], got {scale}"
-        )));
+        return Err(PackError::Param {
+            field: "calibration_scale",
+            rule: format!("must be in (0, 1], got {scale}"),
+        });
     }
     Ok(Params {
         diameter: p.diameter * scale,
@@ -1134,9 +702,10 @@ fn check_loose(loose_friction: f64) -> Result<(), PackError> {
     if loose_friction > 0.0 && loose_friction.is_finite() {
         Ok(())
     } else {
-        Err(PackError::Bad(format!(
-            "--loose-friction must be a positive friction coefficient, got {loose_friction}"
-        )))
+        Err(PackError::Param {
+            field: "loose_friction",
+            rule: format!("must be a positive friction coefficient, got {loose_friction}"),
+        })
     }
 }
 
@@ -1209,9 +778,10 @@ pub fn calibrate(
     mut report: impl FnMut(f64, &Status) + Send,
 ) -> Result<Calibration, PackError> {
     if !(0.0..=1.0).contains(&relative_density) {
-        return Err(PackError::Bad(format!(
-            "--relative-density must be in [0, 1], got {relative_density}"
-        )));
+        return Err(PackError::Param {
+            field: "relative_density",
+            rule: format!("must be in [0, 1], got {relative_density}"),
+        });
     }
     let sample = sample(p, scale)?;
     let limits = limits_of(
@@ -1299,7 +869,7 @@ pub struct Refinement {
 /// Corrects `calibration`'s friction for the specimen's own `limits` (e_min, e_max at its size)
 /// by `runs` compactions of the specimen itself. The specimen packs denser than the sample at
 /// any friction (its wall is a smaller share), by about the same void ratio over the range
-/// that matters (I_P, session 16: 0.068 at friction 0.1, 0.073 at 0.067): each run measures
+/// that matters (I_P: 0.068 at friction 0.1, 0.073 at 0.067): each run measures
 /// that offset at the friction it was made at, and the next friction is the one at which the
 /// sample's curve (its calibration runs) reaches the full-scale target plus the offset.
 #[allow(clippy::too_many_arguments)]
@@ -1375,17 +945,6 @@ pub struct Summary {
     pub steps: u64,
     pub time: f64,
     pub dt: f64,
-}
-
-/// The deviatoric anisotropy a_c = (15/2) sqrt(3/2 d:d) of `count` unit normals whose `n n^T`
-/// sum to `fabric` (d the deviator of their mean); 0 for none.
-pub fn anisotropy(fabric: &nalgebra::Matrix3<f64>, count: usize) -> f64 {
-    if count == 0 {
-        return 0.0;
-    }
-    let f = fabric / count as f64;
-    let d = f - nalgebra::Matrix3::identity() * (f.trace() / 3.0);
-    7.5 * (1.5 * d.component_mul(&d).sum()).sqrt()
 }
 
 /// The summary of specimen `w` made with `p`.
@@ -1482,10 +1041,11 @@ pub fn summary(w: &World, p: &Params) -> Summary {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::lab::boundary::container;
 
     #[test]
     fn the_sample_curve_is_read_both_ways_in_the_square_root_of_the_friction() {
-        // Session 16's Ab_1 sample: limits and two runs, out of order as they are run.
+        // A measured Ab_1 sample: limits and two runs, out of order as they are run.
         let runs = [(0.0, 0.566), (1.0, 0.959), (0.04, 0.616), (0.072, 0.672)];
         assert_eq!(sample_void_ratio(&runs, 0.04), 0.616);
         assert_eq!(sample_void_ratio(&runs, 0.0), 0.566);
@@ -1516,22 +1076,8 @@ mod tests {
     }
 
     #[test]
-    fn random_rotations_are_unit_and_spread_over_all_directions() {
-        let mut rng = ChaCha8Rng::seed_from_u64(1);
-        let mut mean = Vec3::zeros();
-        let n = 20000;
-        for _ in 0..n {
-            let q = random_rotation(&mut rng);
-            assert!((q.norm() - 1.0).abs() < 1e-12);
-            mean += q * Vec3::x();
-        }
-        // Uniform directions average to zero within a few 1 / sqrt(n).
-        assert!((mean / n as f64).norm() < 0.03, "{mean:?}");
-    }
-
-    #[test]
     fn the_count_fills_the_container_at_the_porosity_in_equal_numbers() {
-        let cube = Shape::from_mesh(&crate::mesh::cube(0.5)).unwrap();
+        let cube = Shape::from_mesh(&crate::geometry::mesh::cube(0.5)).unwrap();
         // The cylinder's cross-section is its 128 facets' polygon.
         let polygon = 0.5 * 128.0 * crate::math::square(0.05f64) * (2.0 * PI / 128.0).sin();
         for (kind, section) in [(Container::Cylinder, polygon), (Container::Box, 0.1 * 0.08)] {
@@ -1570,197 +1116,5 @@ mod tests {
             w.step();
             assert_eq!(w.contacts.len(), 0, "{kind:?}");
         }
-    }
-
-    #[test]
-    fn the_compaction_servo_integrates_only_below_its_cap_and_resets_when_the_error_turns() {
-        let cube = Shape::from_mesh(&crate::mesh::cube(0.5)).unwrap();
-        let p = Params {
-            count: Some(4),
-            diameter: 0.1,
-            height: 0.2,
-            size_min: 0.01,
-            size_max: 0.02,
-            ..Params::default()
-        };
-        let w = cloud(vec![cube], &p).unwrap();
-        let geometry = bounds(&w).geometry();
-        let half = geometry.iter().map(|g| g.half).collect::<Vec<_>>();
-        // Nothing on the walls: one contact's gain, so the walls go at the loose cloud's cap
-        // and nothing is integrated.
-        let mut integral = 0.0;
-        let v = servo(&w, &p, &geometry, &[0.0; 3], &[0; 3], Some(&mut integral));
-        assert_eq!(integral, 0.0);
-        for (v, h) in v.iter().zip(&half) {
-            approx::assert_relative_eq!(*v, p.loose_strain_rate * h, max_relative = 1e-12);
-        }
-        // Near the target on stiff walls (a million contacts each): below the cap, so the error
-        // adds up, a 2000th of it each step, and speeds the walls up by as much.
-        let counts = [1_000_000; 3];
-        let near = [0.99 * p.pressure; 3];
-        let first = servo(&w, &p, &geometry, &near, &counts, Some(&mut integral));
-        approx::assert_relative_eq!(integral, 0.01 * p.pressure / 2000.0, max_relative = 1e-12);
-        let second = servo(&w, &p, &geometry, &near, &counts, Some(&mut integral));
-        approx::assert_relative_eq!(
-            second[SIDE] / first[SIDE],
-            1.0 + 1.0 / 2000.0,
-            max_relative = 1e-9
-        );
-        assert!(first[SIDE] > 0.0 && first[SIDE] < p.max_strain_rate * half[SIDE]);
-        // Past the target: the integral starts again from zero at once, and the walls back out.
-        let past = [1.01 * p.pressure; 3];
-        let back = servo(&w, &p, &geometry, &past, &counts, Some(&mut integral));
-        approx::assert_relative_eq!(integral, -0.01 * p.pressure / 2000.0, max_relative = 1e-12);
-        assert!(back.iter().all(|&v| v < 0.0), "{back:?}");
-        // Without integral action it never grows.
-        let q = Params {
-            integral_steps: 0,
-            ..p.clone()
-        };
-        let mut integral = 0.0;
-        servo(&w, &q, &geometry, &near, &counts, Some(&mut integral));
-        assert_eq!(integral, 0.0);
-    }
-
-    #[test]
-    fn inertia_scaling_gives_every_body_the_largest_step_and_restoring_gives_the_true_inertia() {
-        // Spiky and flat templates, sizes 1:4: the step was set by the smallest, spikiest one.
-        let shapes: Vec<Shape> = [6, 9, 14]
-            .map(|faces| {
-                let q = crate::polygen::Params {
-                    faces,
-                    ..Default::default()
-                };
-                let m = crate::polygen::generate(&q, 7, 0).unwrap().mesh;
-                Shape::from_mesh(&m).unwrap()
-            })
-            .into();
-        let p = Params {
-            diameter: 0.2,
-            height: 0.4,
-            count: Some(30),
-            inertia_scaling: false,
-            ..Params::default()
-        };
-        let mut w = cloud(shapes, &p).unwrap();
-        let true_dt = w.critical_dt();
-        let largest = (w.critical_dts().iter()).map(|d| d.0).fold(0.0, f64::max);
-        let mut rng = ChaCha8Rng::seed_from_u64(2);
-        for b in w.bodies.iter_mut() {
-            b.vel = Vec3::new(rng.random(), rng.random(), rng.random());
-            b.ang_mom = Vec3::new(rng.random(), rng.random(), rng.random()) * b.moments.x;
-        }
-        let before: Vec<(Vec3, Vec3)> = w.bodies.iter().map(|b| (b.vel, b.omega())).collect();
-        scale_inertia(&mut w);
-        for (t, r) in w.critical_dts() {
-            assert!((t - largest).abs() < 1e-12 * largest, "{t} {largest}");
-            assert!((r - largest).abs() < 1e-12 * largest, "{r} {largest}");
-        }
-        assert!(largest > 4.0 * true_dt, "{largest} against {true_dt}");
-        for (b, (v, omega)) in w.bodies.iter().zip(&before) {
-            assert_eq!(b.vel, *v);
-            assert!((b.omega() - omega).norm() < 1e-12 * omega.norm());
-        }
-        restore_inertia(&mut w, &p);
-        assert_eq!(w.dt, p.safety * true_dt);
-        for (b, (v, omega)) in w.bodies.iter().zip(&before) {
-            let (mass, moments) = w.inertia_of(b.shape, b.scale);
-            assert_eq!((b.mass, b.moments), (mass, moments));
-            assert_eq!(b.vel, *v);
-            assert!((b.omega() - omega).norm() < 1e-12 * omega.norm());
-        }
-    }
-
-    #[test]
-    fn core_porosity_counts_the_part_of_a_straddling_body_inside_the_core() {
-        // One cube in a box 200 x 160 x 120 mm, its centre on the core's x-min side 30 mm in:
-        // half of it is inside, upright or turned about z (a cube is symmetric about its
-        // centre), and none of it when it lies wholly in the layer.
-        let cube = Shape::from_mesh(&crate::mesh::cube(0.5)).unwrap();
-        let p = Params {
-            container: Container::Box,
-            count: Some(1),
-            width: 0.2,
-            depth: 0.16,
-            height: 0.12,
-            size_min: 0.02,
-            size_max: 0.02,
-            ..Params::default()
-        };
-        let mut w = cloud(vec![cube], &p).unwrap();
-        let b = bounds(&w);
-        let Section::Rect { x, y } = b.section else {
-            panic!("a box")
-        };
-        let layer = 0.03;
-        let core =
-            (x[1] - x[0] - 2.0 * layer) * (y[1] - y[0] - 2.0 * layer) * (b.height() - 2.0 * layer);
-        let side = w.bodies[0].scale;
-        let middle = Vec3::new(x[0] + layer, 0.5 * (y[0] + y[1]), 0.5 * (b.bottom + b.top));
-        for turn in [0.0, 0.3, PI / 4.0] {
-            w.bodies[0].pos = middle;
-            w.bodies[0].rot = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), turn);
-            let expected = 1.0 - 0.5 * crate::math::cube(side) / core;
-            let got = core_porosity(&w, layer).unwrap();
-            assert!(
-                (got - expected).abs() < 1e-12,
-                "turn {turn}: {got} {expected}"
-            );
-        }
-        w.bodies[0].pos.x = x[0] + 0.4 * layer;
-        assert_eq!(core_porosity(&w, layer), Some(1.0));
-        // No layer and the cube inside: the container's porosity.
-        w.bodies[0].pos = middle + Vec3::x() * 0.05;
-        let whole = core_porosity(&w, 0.0).unwrap();
-        assert!(
-            (whole - porosity(&w)).abs() < 1e-12,
-            "{whole} {}",
-            porosity(&w)
-        );
-        // A layer that leaves nothing.
-        assert_eq!(core_porosity(&w, 0.061), None);
-        // A cylinder's core without a layer is its facet polygon, as the porosity's.
-        let q = Params {
-            container: Container::Cylinder,
-            diameter: 0.1,
-            ..p.clone()
-        };
-        let c = cloud(w.shapes.clone(), &q).unwrap();
-        let whole = core_porosity(&c, 0.0).unwrap();
-        assert!(
-            (whole - porosity(&c)).abs() < 1e-12,
-            "{whole} {}",
-            porosity(&c)
-        );
-    }
-
-    #[test]
-    fn anisotropy_is_7_5_for_aligned_normals_and_7_5_over_root_n_for_random_ones() {
-        let z = Vec3::z();
-        assert!((anisotropy(&(z * z.transpose() * 10.0), 10) - 7.5).abs() < 1e-12);
-        // Along the three axes alike: isotropic.
-        let axes = Vec3::x() * Vec3::x().transpose()
-            + Vec3::y() * Vec3::y().transpose()
-            + z * z.transpose();
-        assert!(anisotropy(&axes, 3) < 1e-12);
-        // Isotropic random normals: the root mean square is Summary::anisotropy_noise's.
-        let mut rng = ChaCha8Rng::seed_from_u64(4);
-        let n = 500;
-        let trials = 400;
-        let mut sum2 = 0.0;
-        for _ in 0..trials {
-            let mut fabric = nalgebra::Matrix3::zeros();
-            for _ in 0..n {
-                let v = random_rotation(&mut rng) * z;
-                fabric += v * v.transpose();
-            }
-            sum2 += crate::math::square(anisotropy(&fabric, n));
-        }
-        let rms = (sum2 / trials as f64).sqrt();
-        let expected = 7.5 / (n as f64).sqrt();
-        assert!(
-            (rms / expected - 1.0).abs() < 0.05,
-            "{rms} against {expected}"
-        );
     }
 }

@@ -11,8 +11,8 @@
 //! points. One level turns V vertices, E edges and F faces into V + E + F vertices and
 //! sum(face sizes) = 2E quads.
 
+use crate::geometry::mesh::{PolyMesh, Topology};
 use crate::math::Vec3;
-use crate::mesh::{PolyMesh, Topology};
 
 /// One level of Catmull-Clark subdivision. `topo` must be `mesh.topology(..)`.
 pub fn catmull_clark(mesh: &PolyMesh, topo: &Topology) -> PolyMesh {
@@ -97,8 +97,8 @@ pub fn subdivide(mesh: &PolyMesh, topo: &Topology, levels: u32) -> PolyMesh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mass::MassProps;
-    use crate::mesh::cube;
+    use crate::geometry::mass::MassProps;
+    use crate::geometry::mesh::cube;
     use approx::assert_relative_eq;
 
     #[test]
@@ -145,8 +145,8 @@ mod tests {
 
     #[test]
     fn commutes_with_affine_maps() {
-        let c = crate::polygen::generate(
-            &crate::polygen::Params {
+        let c = crate::geometry::polygen::generate(
+            &crate::geometry::polygen::Params {
                 faces: 9,
                 ..Default::default()
             },

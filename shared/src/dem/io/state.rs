@@ -7,13 +7,16 @@
 //! reads back to the same f64, so a run restarted from a state continues bit for bit. A *scene*
 //! (what a user writes) may give shapes as plain meshes (`vertices` and `faces`, any frame) and
 //! leave out what follows from them. The records are specified with examples in
-//! `docs/dem-state.md`.
+//! `docs/formats/dem-state.md`.
 
-use super::shape::Shape;
-use super::wall::{Wall, WallKind};
-use super::world::{Body, Contact, Energy, Material, Partner, World};
+use crate::dem::contacts::Partner;
+use crate::dem::energy::Energy;
+use crate::dem::law::{Contact, Material};
+use crate::dem::shape::Shape;
+use crate::dem::wall::{Wall, WallKind};
+use crate::dem::world::{Body, World};
+use crate::geometry::mesh::PolyMesh;
 use crate::math::Vec3;
-use crate::mesh::PolyMesh;
 use nalgebra::{Quaternion, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use std::io::{BufRead, Write};
@@ -444,28 +447,7 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
         match rec {
             Record::Header { .. } => return Err(at(n, "a second header")),
             Record::Material(m) => {
-                let Material {
-                    density,
-                    kn,
-                    ks,
-                    friction,
-                    wall_friction,
-                    damping,
-                } = m;
-                finite(
-                    n,
-                    "material",
-                    &[density, kn, ks, friction, wall_friction, damping],
-                )?;
-                if density <= 0.0
-                    || kn <= 0.0
-                    || ks < 0.0
-                    || friction < 0.0
-                    || wall_friction < 0.0
-                    || !(0.0..1.0).contains(&damping)
-                {
-                    return Err(at(n, "material: density and kn must be positive, ks, frictions >= 0, damping in [0, 1)"));
-                }
+                m.check().map_err(|e| at(n, format!("material: {e}")))?;
                 world.material = m;
                 material_seen = true;
             }
@@ -651,9 +633,10 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
         // The exact principal form written by dem: taken as it is.
         let face_start = std::mem::take(&mut mesh.face_start);
         let face_verts = std::mem::take(&mut mesh.face_verts);
-        let (vertex_face_start, vertex_faces) = super::shape::incidence(&face_start, &face_verts);
+        let (vertex_face_start, vertex_faces) =
+            crate::dem::shape::incidence(&face_start, &face_verts);
         let normals: Vec<Vec3> = p.normals.iter().map(v3).collect();
-        let climb = super::shape::Climb::of(
+        let climb = crate::dem::shape::Climb::of(
             &mesh.vertices,
             &face_start,
             &face_verts,
@@ -685,7 +668,7 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
     }
     mesh.topology(None)
         .map_err(|e| at(n, format!("shape '{}': {e}", s.name)))?;
-    let props = crate::mass::MassProps::of(&mesh);
+    let props = crate::geometry::mass::MassProps::of(&mesh);
     if props.volume <= 0.0 {
         return Err(at(n, format!("shape '{}' faces point inwards (volume {:e}); faces must be counter-clockwise seen from outside", s.name, props.volume)));
     }
@@ -720,7 +703,7 @@ fn check_fixed_overlaps(world: &World) -> Result<(), StateError> {
                 sa.posed(&a.pos, &a.rot, a.scale),
                 sb.posed(&b.pos, &b.rot, b.scale),
             );
-            if super::overlap::overlap(sa, &pa, sb, &pb).is_some() {
+            if crate::dem::collision::overlap::overlap(sa, &pa, sb, &pb).is_some() {
                 return Err(StateError::Scene(format!(
                     "fixed bodies {i} and {j} overlap"
                 )));
@@ -814,7 +797,7 @@ mod tests {
     use super::*;
 
     fn scene() -> String {
-        let cube = crate::mesh::cube(0.5);
+        let cube = crate::geometry::mesh::cube(0.5);
         let verts: Vec<[f64; 3]> = cube.vertices.iter().map(a3).collect();
         let faces: Vec<Vec<u32>> = cube.faces().map(|f| f.to_vec()).collect();
         format!(

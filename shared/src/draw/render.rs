@@ -7,8 +7,8 @@
 //! is supersampled for smooth edges. An object's `color=RRGGBB` attribute sets its colour and
 //! `edges=no` hides its edges.
 
+use crate::geometry::mesh::PolyMesh;
 use crate::math::Vec3;
-use crate::mesh::PolyMesh;
 use ab_glyph::{Font, FontRef, PxScale, ScaleFont};
 use std::io::Write;
 
@@ -463,7 +463,7 @@ pub fn uv_sphere(r: f64, rings: usize, segments: usize) -> PolyMesh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mass::MassProps;
+    use crate::geometry::mass::MassProps;
 
     #[test]
     fn uv_sphere_is_closed_and_outward() {
@@ -478,7 +478,7 @@ mod tests {
 
     #[test]
     fn a_cube_is_drawn_in_its_cell_and_the_rest_stays_white() {
-        let cells = group_cells(vec![crate::mesh::cube(1.0)]);
+        let cells = group_cells(vec![crate::geometry::mesh::cube(1.0)]);
         let img = render(
             &cells,
             &Options {

@@ -1,4 +1,4 @@
-//! Reads the peer benchmark's scene format (`peer-scene v1`, `../shared/peers/yade/README.md`)
+//! Reads the peer benchmark's scene format (`peer-scene v1`, `pipelines/yade/README.md`)
 //! so that the same scene runs in Yade and here.
 //!
 //! `box Lx Ly Lz` gives a floor `z = 0` and side walls `x = 0, Lx`, `y = 0, Ly` (open top);
@@ -8,11 +8,12 @@
 //! The peer's physics parameters: density 2600, friction 0.5 on particles and walls, damping
 //! 0.3, gravity 9.81 down; our linear law uses the paper's kn = 1e8 N/m, ks = 5e7 N/m.
 
-use super::shape::Shape;
-use super::wall::Wall;
-use super::world::{Material, World};
-use crate::hull;
-use crate::mass::equivalent_diameter;
+use crate::dem::law::Material;
+use crate::dem::shape::Shape;
+use crate::dem::wall::Wall;
+use crate::dem::world::World;
+use crate::geometry::hull;
+use crate::geometry::mass::equivalent_diameter;
 use crate::math::Vec3;
 use nalgebra::{Quaternion, UnitQuaternion};
 use std::io::BufRead;
@@ -28,7 +29,7 @@ fn err(line: usize, msg: impl Into<String>) -> String {
 /// With `templates`, particle `i` is not its own polyhedron but template `i mod T` (the nine
 /// templates of 6 to 14 faces match the peer's face counts `6 + i mod 9`), scaled to the
 /// particle's equivalent-sphere diameter `deq`, its centroid on the particle's and its
-/// principal axes along the particle's: the issue's benchmark scene (the nine templates, sizes
+/// principal axes along the particle's: the benchmark scene (the nine templates, sizes
 /// 10-40 mm) in the peer's box and loose lattice. The bodies then share T shapes.
 pub fn read_peer_scene<R: BufRead, S: BufRead>(
     scene: R,
@@ -213,13 +214,17 @@ mod tests {
             0 4 0.01 0.05 0.05 0.05 4 0.01 0 0 0 0.01 0 0 0 0.01 -0.005 -0.005 -0.005\n\
             1 4 0.02 0.15 0.05 0.05 4 0.01 0 0 0 0.01 0 0 0 0.01 -0.005 -0.005 -0.005\n\
             2 4 0.03 0.05 0.15 0.05 4 0.01 0 0 0 0.01 0 0 0 0.01 -0.005 -0.005 -0.005\n";
-        let cube = Shape::from_mesh(&crate::mesh::cube(1.0)).unwrap();
-        let params = crate::polygen::Params {
+        let cube = Shape::from_mesh(&crate::geometry::mesh::cube(1.0)).unwrap();
+        let params = crate::geometry::polygen::Params {
             faces: 8,
             ..Default::default()
         };
-        let octa =
-            Shape::from_mesh(&crate::polygen::generate(&params, 7, 0).unwrap().mesh).unwrap();
+        let octa = Shape::from_mesh(
+            &crate::geometry::polygen::generate(&params, 7, 0)
+                .unwrap()
+                .mesh,
+        )
+        .unwrap();
         let w = read_peer_scene(scene.as_bytes(), None::<&[u8]>, Some(&[cube, octa])).unwrap();
         assert_eq!(
             (w.shapes.len(), w.bodies.len()),

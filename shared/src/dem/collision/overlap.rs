@@ -19,11 +19,11 @@
 //! bounding boxes, clipped to them (half-spaces holding `A ∩ B` leave it unchanged), and then
 //! only the planes of the other body that cut the box are applied.
 
-use super::gjk::{separating_gap, Hints, Points};
-use super::shape::{motion_bound, Posed, Shape};
-use super::structure::{
+use crate::dem::collision::gjk::{separating_gap, Hints, Points};
+use crate::dem::collision::kept::{
     discover, join, pose_of, pose_words, split, Packed, Pair, Structure, POSE_WORDS,
 };
+use crate::dem::shape::{motion_bound, Posed, Shape};
 use crate::math::{bounding_box, box_excess, clip, clip_with, Vec3};
 
 /// The overlap of two bodies: volume, centroid, and `S_B` (area vector of B's surface inside A,
@@ -566,7 +566,7 @@ pub enum Found {
     None,
 }
 
-/// [`overlap_along`], also handing back the overlap's structure (see [`super::structure`]) when
+/// [`overlap_along`], also handing back the overlap's structure (see [`crate::dem::collision::kept`]) when
 /// it has one, and trying `kept` (the pair's structure from the last step) first. The result is
 /// the same, to the bit, with or without `kept`. Without `structured`, only the clipping is
 /// used (no structure is looked for, `kept` is ignored).
@@ -1157,7 +1157,7 @@ fn wall_set_holds(w: &[u32], b: &Posed, n: &Vec3, d: f64, radius: f64) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::cube;
+    use crate::geometry::mesh::cube;
     use approx::assert_relative_eq;
     use nalgebra::UnitQuaternion;
 
@@ -1277,14 +1277,14 @@ mod tests {
 
     /// An Ab_3-like hull (a tangent-plane polyhedron subdivided three times: 770 vertices).
     fn large_hull() -> Shape {
-        use crate::polygen::{generate, Params};
+        use crate::geometry::polygen::{generate, Params};
         let params = Params {
             faces: 9,
             ..Default::default()
         };
         let mesh = generate(&params, 3, 0).unwrap().mesh;
         let topo = mesh.topology(None).unwrap();
-        let s = Shape::from_mesh(&crate::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
+        let s = Shape::from_mesh(&crate::geometry::subdiv::subdivide(&mesh, &topo, 3)).unwrap();
         assert!(s.climb.is_some(), "a large hull");
         s
     }

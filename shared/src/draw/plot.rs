@@ -1,7 +1,7 @@
 //! Line charts from tables: lines with optional bands (spread), drawn with `plotters` into an
 //! RGB buffer (no system font or image library: the font is DejaVu Sans, bundled by a crate).
 
-use crate::render::Image;
+use crate::draw::render::Image;
 use plotters::prelude::*;
 use std::collections::BTreeMap;
 use std::sync::Once;

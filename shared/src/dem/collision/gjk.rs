@@ -9,7 +9,7 @@
 //! only means "not shown separated" (overlapping, touching within the margin, or the iteration
 //! gave up), and the caller then does the exact overlap.
 
-use super::shape::{Climb, Posed, Shape};
+use crate::dem::shape::{Climb, Posed, Shape};
 use crate::math::Vec3;
 use nalgebra::Rotation3;
 

@@ -12,7 +12,7 @@ use crate::math::Vec3;
 use thiserror::Error;
 
 /// `key=value` attributes of one object, in the order they were set (carried in the OBJ stream as
-/// `#@ key=value` lines; see `docs/obj-stream.md`).
+/// `#@ key=value` lines; see `docs/formats/obj-stream.md`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Attrs(pub Vec<(String, String)>);
 

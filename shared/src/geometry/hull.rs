@@ -12,8 +12,8 @@
 //! dual. Points in the interior of a merged face, and points on a merged edge (valence two), are
 //! dropped: every output vertex is a corner.
 
+use crate::geometry::mesh::PolyMesh;
 use crate::math::{extent, Vec3};
-use crate::mesh::PolyMesh;
 use robust::{orient3d, Coord3D};
 use thiserror::Error;
 
@@ -552,7 +552,7 @@ pub fn polygon_plane(points: impl Iterator<Item = Vec3> + Clone) -> (Vec3, f64) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::cube;
+    use crate::geometry::mesh::cube;
     use rand::{RngCore, SeedableRng};
 
     fn random_points(n: usize, seed: u64) -> Vec<Vec3> {
@@ -569,13 +569,13 @@ mod tests {
             .map(|p| p.normalize())
             .collect();
         let full = convex_hull(&pts).unwrap();
-        let full_volume = crate::mass::MassProps::of(&full.mesh).volume;
+        let full_volume = crate::geometry::mass::MassProps::of(&full.mesh).volume;
         let mut last = 0.0;
         for budget in [4, 20, 50, 100, 200] {
             let h = simplified_hull(&pts, budget).unwrap();
             check_hull(&h.mesh.vertices, &h);
             assert!(h.mesh.vertices.len() <= budget);
-            let v = crate::mass::MassProps::of(&h.mesh).volume;
+            let v = crate::geometry::mass::MassProps::of(&h.mesh).volume;
             // Inside the full hull, closer to it as the budget grows.
             assert!(
                 v <= full_volume * (1.0 + 1e-12) && v > last,
@@ -687,7 +687,7 @@ mod tests {
 
     #[test]
     fn abraded_meshes_with_thousands_of_vertices() {
-        use crate::{mass::MassProps, polygen, subdiv};
+        use crate::geometry::{mass::MassProps, polygen, subdiv};
         for (k, levels) in [(6, 4), (14, 3), (9, 4)] {
             let p = polygen::generate(
                 &polygen::Params {

@@ -1,7 +1,7 @@
 //! The overlap polyhedron by its structure, kept from one step to the next.
 //!
 //! At rest, 99.5 % of contacts keep the same overlap structure from one step to the next
-//! (docs/dem-contact.md). So instead of clipping faces every step, a contact keeps the list of
+//! (docs/models/contact.md). So instead of clipping faces every step, a contact keeps the list of
 //! the overlap's corners, each named by what makes it:
 //! - a vertex of one body inside the other, or
 //! - an edge of one body crossing a face plane of the other,
@@ -31,10 +31,10 @@
 //! structure in both cases, so keeping structures or not gives the same bytes, and a restart
 //! (which keeps none) equals the uninterrupted run. Near-degenerate overlaps (a corner within the
 //! margin of another plane, faces pressed flat on each other) have no structure: the clipping
-//! construction of [`super::overlap`] handles them, every step.
+//! construction of [`crate::dem::collision::overlap`] handles them, every step.
 
-use super::overlap::{set_bits, Acc, Overlap};
-use super::shape::{travelled, Posed, Shape, Travel, CLIMB_MIN, TRAVEL_UNKNOWN};
+use crate::dem::collision::overlap::{set_bits, Acc, Overlap};
+use crate::dem::shape::{travelled, Posed, Shape, Travel, CLIMB_MIN, TRAVEL_UNKNOWN};
 use crate::math::Vec3;
 use nalgebra::UnitQuaternion;
 
@@ -47,7 +47,7 @@ const MARGIN_REL: f64 = 1e-9;
 /// fraction of the pair's size to when found, and against the others by the bodies' motion
 /// since; when that motion uses up their clearance, the structure is renewed
 /// ([`Packed::renewed`]). A near plane, too, is only checked once the motion since could have
-/// used up the clearance it had. At 5e-3 (until session 24) the 5000 Ab_3 bed's structures had
+/// used up the clearance it had. At 5e-3 the 5000 Ab_3 bed's structures had
 /// 74 near planes each (144 of their ~350 words) and 16 500 clearances ran out in 1000 steps;
 /// at 2.5e-3, 27 near planes and 41 000: 1.03x with each found again, and 1.03x more with
 /// each renewed instead (both bodies' motion bounds counted from one pose); 26 -> 21 KiB per
@@ -198,13 +198,13 @@ impl<'a> Pair<'a> {
     /// How far `p` (world) lies inside each face plane of body `side`, by a scan in the body's
     /// own frame over its shape's planes (posing all ~1 500 planes of an Ab_3 hull for it, a
     /// rotation each, was most of the cost of finding a large pair's structure; groups of
-    /// planes facing away are bounded, not scanned: [`super::shape::Climb::clearances`]).
+    /// planes facing away are bounded, not scanned: [`crate::dem::shape::Climb::clearances`]).
     /// Calls `near(f, inside)` for each face whose plane `p` may be nearer to than
     /// [`NEAR_REL`] x size (to round-off: the caller checks those in world coordinates, as
     /// [`Pair::vertex_inside`] will), with how far inside it `p` is less its round-off, and
     /// returns a lower bound on the least distance inside the others, less its round-off
     /// (infinite when there are none; for a large body the bound of each group of planes
-    /// facing away, see [`super::shape::Climb::clearances`]). Distances of the frame change's
+    /// facing away, see [`crate::dem::shape::Climb::clearances`]). Distances of the frame change's
     /// round-off, ~1e-16 of the positions, are far inside the allowance of 1e-3 x the margin.
     fn far_clearance(&self, side: u8, p: &Vec3, mut near: impl FnMut(u32, f64)) -> f64 {
         let (s, posed) = (self.shapes[side as usize], self.posed[side as usize]);
@@ -548,7 +548,7 @@ fn shared_planes(a: &[(u8, u32)], b: &[(u8, u32)], own: (u8, u32)) -> usize {
 
 /// The structure of the overlap of `pair`, or `None` when it is near-degenerate (or empty).
 /// `reach`: each body's vertices that can lie in the overlap; `faces`: each body's faces that can
-/// bound it (for both, all of them will do; [`super::overlap`] passes those meeting its slab).
+/// bound it (for both, all of them will do; [`crate::dem::collision::overlap`] passes those meeting its slab).
 pub fn discover(pair: &Pair, reach: [&[u32]; 2], faces: [&[u32]; 2]) -> Option<Structure> {
     let fits = |s: &Shape| s.vertices.len() < INDEX_LIMIT && s.face_count() < INDEX_LIMIT;
     if !pair.shapes.iter().all(|s| fits(s)) {
@@ -1123,12 +1123,12 @@ impl<'a> Packed<'a> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::overlap::{overlap_kept, overlap_kept_or, overlap_parts, Found};
-    use super::super::shape::{motion_bound, travel_after};
     use super::*;
+    use crate::dem::collision::overlap::{overlap_kept, overlap_kept_or, overlap_parts, Found};
+    use crate::dem::shape::{motion_bound, travel_after};
+    use crate::geometry::mesh::cube;
+    use crate::geometry::polygen::{generate, Params};
     use crate::math::unit_f64;
-    use crate::mesh::cube;
-    use crate::polygen::{generate, Params};
     use nalgebra::UnitQuaternion;
     use rand::{RngCore, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -1457,7 +1457,7 @@ mod tests {
         let mesh = generate(&params, 3, 0).unwrap().mesh;
         let topo = mesh.topology(None).unwrap();
         let started = std::time::Instant::now();
-        let huge = Shape::from_mesh(&crate::subdiv::subdivide(&mesh, &topo, 6)).unwrap();
+        let huge = Shape::from_mesh(&crate::geometry::subdiv::subdivide(&mesh, &topo, 6)).unwrap();
         eprintln!(
             "{} vertices, {} faces in {:?}",
             huge.vertices.len(),
@@ -1500,7 +1500,9 @@ mod tests {
             };
             let mesh = generate(&params, 3, 0).unwrap().mesh;
             let topo = mesh.topology(None).unwrap();
-            out.push(Shape::from_mesh(&crate::subdiv::subdivide(&mesh, &topo, 3)).unwrap());
+            out.push(
+                Shape::from_mesh(&crate::geometry::subdiv::subdivide(&mesh, &topo, 3)).unwrap(),
+            );
             if faces == 9 {
                 out.push(Shape::from_mesh(&mesh).unwrap());
             }

@@ -15,14 +15,14 @@
 //! stream, chosen by `(seed, k, index)`, so an object does not depend on what else is generated,
 //! on the order of generation or on the number of threads.
 
-use crate::hull::{self, side, HullError};
+use crate::geometry::hull::{self, side, HullError};
+use crate::geometry::mesh::PolyMesh;
 use crate::math::{unit_f64, Vec3};
-use crate::mesh::PolyMesh;
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use thiserror::Error;
 
-/// Default elongation cap (farthest vertex over the inscribed radius `R`); see `docs/polygen.md`
+/// Default elongation cap (farthest vertex over the inscribed radius `R`); see `docs/models/polygen.md`
 /// for how it was chosen and what it changes.
 pub const DEFAULT_MAX_ELONGATION: f64 = 5.0;
 
@@ -207,7 +207,7 @@ pub fn from_tangent_points(points: &[Vec3], radius: f64) -> Result<(PolyMesh, f6
         mesh.push_face(&ring);
     }
     if let Some(f) = (0..mesh.face_count())
-        .find(|&f| crate::mass::MassProps::face_area(&mesh, f) < MIN_FACE_AREA_REL * r2)
+        .find(|&f| crate::geometry::mass::MassProps::face_area(&mesh, f) < MIN_FACE_AREA_REL * r2)
     {
         return Err(DrawError::Degenerate(format!(
             "face {f} has almost no area: two tangent points nearly coincide"
@@ -285,7 +285,7 @@ pub fn generate(params: &Params, seed: u64, index: u64) -> Result<Polyhedron, Po
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mass::MassProps;
+    use crate::geometry::mass::MassProps;
 
     /// Checks the promises: k planar faces in the tangent planes, closed oriented convex
     /// manifold, no duplicated vertices, no zero-area face.

@@ -3,8 +3,9 @@
 //! the sliding flag), walls (a square patch of each plane), and a `.pvd` collection per stream
 //! that ParaView opens as a time series. ASCII, so the files are readable and diffable.
 
-use super::wall::WallKind;
-use super::world::{Partner, World};
+use crate::dem::contacts::Partner;
+use crate::dem::wall::WallKind;
+use crate::dem::world::World;
 use crate::math::{basis, Vec3};
 use std::fmt::Write as _;
 use std::io::Write;
@@ -259,9 +260,9 @@ impl Snapshots {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dem::law::Material;
     use crate::dem::shape::Shape;
     use crate::dem::wall::Wall;
-    use crate::dem::world::Material;
     use nalgebra::UnitQuaternion;
 
     /// The numbers inside the `Name` data array of the first piece.
@@ -280,7 +281,7 @@ mod tests {
     #[test]
     fn counts_agree_with_the_header() {
         let mut w = World::new(Material::default(), Vec3::new(0.0, 0.0, -9.81));
-        let s = w.add_shape(Shape::from_mesh(&crate::mesh::cube(0.5)).unwrap());
+        let s = w.add_shape(Shape::from_mesh(&crate::geometry::mesh::cube(0.5)).unwrap());
         w.walls.push(Wall::plane(Vec3::zeros(), Vec3::z()));
         w.add_body(
             s,

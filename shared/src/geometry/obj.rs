@@ -1,6 +1,6 @@
 //! The OBJ stream: many objects in one Wavefront OBJ text, read and written one object at a time.
 //!
-//! Conventions (specified with an example in `docs/obj-stream.md`):
+//! Conventions (specified with an example in `docs/formats/obj-stream.md`):
 //! - each object starts with `o NAME`; vertex lines before the first `o` start an object named
 //!   `object`;
 //! - `f` indices are 1-based and global to the stream, as OBJ defines them (negative indices count
@@ -14,8 +14,8 @@
 //! The reader keeps one object in memory; the writer writes floats in the shortest text that
 //! reads back to the same f64 (ryu), so a mesh round-trips exactly.
 
+use crate::geometry::mesh::PolyMesh;
 use crate::math::Vec3;
-use crate::mesh::PolyMesh;
 use std::io::{self, BufRead, Write};
 use thiserror::Error;
 
@@ -384,7 +384,7 @@ pub fn to_string(meshes: &[PolyMesh]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::cube;
+    use crate::geometry::mesh::cube;
 
     #[test]
     fn two_objects_round_trip_exactly() {

@@ -8,8 +8,8 @@
 //! Roundness is Barrett's 3D roundness (the paper's Eq. 7): `S3D = (36 pi V^2)^(1/3) / A`,
 //! the area of the sphere of equal volume over the particle's area; 1 for a sphere.
 
+use crate::geometry::mesh::PolyMesh;
 use crate::math::{basis, clip, extent, Mat3, Vec3};
-use crate::mesh::PolyMesh;
 
 /// Volume, surface area, centroid and inertia tensor (about the centroid, unit density) of a
 /// closed mesh. A mesh whose faces face inwards has negative volume.
@@ -162,7 +162,7 @@ pub fn clipped_volume(faces: &[Vec<Vec3>], planes: &[(Vec3, f64)]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::cube;
+    use crate::geometry::mesh::cube;
     use approx::assert_relative_eq;
 
     fn tetrahedron() -> PolyMesh {
@@ -305,7 +305,7 @@ mod tests {
     fn fine_sphere_meshes_tend_to_one() {
         let mut last = 0.0;
         for n in [4, 8, 16, 32, 64, 128] {
-            let s = MassProps::of(&crate::render::uv_sphere(1.0, n, 2 * n)).s3d();
+            let s = MassProps::of(&crate::draw::render::uv_sphere(1.0, n, 2 * n)).s3d();
             assert!(
                 s > last && s < 1.0,
                 "S3D rises towards 1 with resolution: {last} -> {s}"

@@ -41,6 +41,11 @@ impl Broad {
         }
     }
 
+    /// The kept list of pairs as the last [`Broad::candidates`] left it.
+    pub fn listed(&self) -> &[(u32, u32)] {
+        &self.listed
+    }
+
     /// Pairs `(i, j)`, `i < j`, ascending, among which are all whose boxes overlap: the kept
     /// list (swept again first when a box has left its grown box). The caller filters them by
     /// [`overlap`] where it reads the boxes anyway (the narrow phase: a pass of its own over

@@ -1,0 +1,4 @@
+//! Pictures: shaded meshes ([`render`]) and line charts of tables ([`plot`]), as PNG.
+
+pub mod plot;
+pub mod render;
