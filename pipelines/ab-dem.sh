@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Two `dem` binaries against each other on one bed, in alternating pairs: the way to see a
-# change of a few per cent on a VM whose speed moves by more than that within minutes
-# (docs/bench.md, "Session 26": the same binary against itself gave a median ratio of 1.012,
-# quartiles 0.976-1.055, over 16 pairs of the 5000 I_P bed on 2 threads).
+# change of a few per cent on a VM whose speed moves by more than that within minutes (the
+# same binary against itself gave a median ratio of 1.012, quartiles 0.976-1.055, over 16
+# pairs of the 5000 I_P bed on 2 threads; docs/performance.md).
 #
 # Each pair runs A then B, or B then A (the order alternates), `--renumber --steps STEPS` from
 # the bed, and takes the time `dem` reports for its steps; the line printed is the median of

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # DEM engine throughput, side by side in one run, with 1 and 2 threads, on the peer benchmark's
-# scenes (../shared/peers/yade), each bed made once by pipelines/settle-peer.sh and kept in
+# scenes (pipelines/yade/scenes.sh puts them in out/bench/peers), each bed made once by pipelines/settle-peer.sh and kept in
 # out/bench/ (the first run takes about two hours; the beds' logs are kept beside them):
-# - the issue's scenes proper: the same clouds with every particle one of the nine templates
+# - the benchmark's scenes proper: the same clouds with every particle one of the nine templates
 #   (`dem --templates`, shared shapes as in a specimen), settled the same way, and as Ab_3;
-# - dense beds at rest, 5-6 contacts per particle (the issue's benchmark): 500 (from Yade's
+# - dense beds at rest, 5-6 contacts per particle (the benchmark): 500 (from Yade's
 #   settled state), 2000 and 5000 particles (from the falling clouds), settled with a soft
 #   kn = 5e3 N/m, and the same beds as Ab_3 hulls (`dem --abrade 3`, settled again). A step's
 #   cost depends on the contacts, not on kn: timed at the kn they settled with.
@@ -18,12 +18,13 @@
 # - the 2000-particle scene's first steps (a loose cloud: broad phase and wall checks);
 # - Yade itself on its own settled 500 bed, when `yade` is installed (settled once, 16-25 minutes).
 # Each of our rows also prints where the step time goes and the peak resident memory, and the
-# contacts per particle as the peer counts them. Results: docs/bench.md.
+# contacts per particle as the peer counts them. Results: docs/performance.md.
 # Usage: pipelines/bench-dem.sh [STEPS]   (default 1000; Yade: YADE_STEPS, default 200, its
 # 1.4e3 particle-steps/s make 1000 steps six minutes; dem must be on PATH)
 set -euo pipefail
 steps=${1:-1000} ysteps=${YADE_STEPS:-200}
-peers=${PEERS:-../shared/peers/yade}
+peers=${PEERS:-${OUT:-out}/bench/peers}
+[ -n "${PEERS:-}" ] || "$(dirname "$0")/yade/scenes.sh" "$peers"
 out=${OUT:-out}/bench
 settle=$(dirname "$0")/settle-peer.sh
 if [ ! -f "$peers/scene_500.txt" ]; then
@@ -47,7 +48,7 @@ for n in "${sizes[@]}"; do
       "$out/ab3soft$n.jsonl"
   fi
 done
-# The issue's scenes proper: the nine templates, shared (`dem --templates`), in the peer's
+# The benchmark's scenes proper: the nine templates, shared (`dem --templates`), in the peer's
 # boxes; NINE_SIZES picks the sizes (default 500 2000 5000), their Ab_3 beds unless AB3=0.
 nine=(${NINE_SIZES:-500 2000 5000})
 for n in "${nine[@]}"; do
@@ -72,7 +73,7 @@ fi
 # (the peer README's recipe, about 16-25 minutes once), then the same timed steps from it.
 # The recipe stops at 840 s of wall time, which reached t = 0.65 s (13 000 steps, 5.5 contacts
 # a particle) on the peer's machine but only t = 0.45 s (3.1 contacts a particle) on a slower
-# or busier one (session 25): the bed, and with it Yade's cost per step, would depend on the
+# or busier one: the bed, and with it Yade's cost per step, would depend on the
 # hour. So the settling ends at the peer's 13 000 steps instead, whatever they take.
 yade_state=$out/yade-settled500.xml.bz2
 if command -v yade >/dev/null && [ ! -f "$yade_state" ]; then
@@ -121,7 +122,7 @@ if [ -f "$out/ab3soft500.jsonl" ]; then
     done
   done
 fi
-# The same on the issue's bed at equal contacts: the 2000 Ab_3 bed of the nine templates, its
+# The same on the benchmark's bed at equal contacts: the 2000 Ab_3 bed of the nine templates, its
 # hulls cut to a vertex budget and settled again (`settle-peer.sh cut`; about 30 s each, once),
 # so each keeps about 5 contacts per particle instead of losing those the cut opens.
 if [ -f "$out/ab3nine2000.jsonl" ]; then

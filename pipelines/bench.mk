@@ -2,7 +2,7 @@
 # energy error (benches/timestep.rs, ~2 min), and the tools through the pipe
 # (pipelines/bench.sh), side by side in one run; the DEM rows between two readings of what the
 # machine gives this hour (benches/machine.rs: clock and load latency, 8 s), with the price of
-# facet walls against planes on the 2000 I_P bed (benches/walls.rs). Results: docs/bench.md.
+# facet walls against planes on the 2000 I_P bed (benches/walls.rs). Results: docs/performance.md.
 bench: build
 	cargo bench --locked -p granular-shared --bench geometry -- --noplot 2>&1 \
 	  | awk '/^geometry\// {name=$$0} /thrpt:/ && name {print name " " $$0; name=""}'

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Settles the peer benchmark's scenes (../shared/peers/yade) under our own contact law, for the
+# Settles the Yade comparison's scenes (pipelines/yade/scenes.sh puts them in out/bench/peers) under our own contact law, for the
 # engine benchmark (pipelines/bench-dem.sh). Each step a mode:
 #
 #   settle-peer.sh soft N OUT.jsonl
@@ -8,7 +8,7 @@
 #       its overlaps) at 0.5 x the critical time step, until the unbalanced-force ratio is below
 #       1e-3: a dense bed at rest, 5-6 contacts per particle as the peer counts them.
 #   settle-peer.sh nine N OUT.jsonl
-#       The benchmark scene: the N-particle scene's falling cloud with every particle
+#       The benchmark scene: the N-particle scene's falling cloud with every particle
 #       replaced by one of the nine templates (`polygen --faces 6..14 --seed 7`, the paper's)
 #       at its size, centroid and principal axes (`dem --templates`), settled as with soft.
 #       The bodies share nine shapes, as a specimen of the paper's does.
@@ -26,7 +26,7 @@
 #       local damping DAMP (default 0.7), each stage until the ratio is below R (1e-2) or STEPS
 #       (20 000) steps, then relaxed with the scene's damping 0.3 the same way. A stiffening
 #       shrinks the overlaps tenfold and opens gaps that gravity closes in ~5 ms (20 000 steps
-#       at kn = 1e8); even so the bed is still compacting at the end (0.3 ratio, docs/bench.md):
+#       at kn = 1e8); even so the bed is still compacting at the end (0.3 ratio, docs/performance.md):
 #       settling at the paper's stiffness takes simulated time that costs hours.
 #
 # Progress and each stage's figures go to stderr; dem (and polygen for nine) must be on PATH.
@@ -34,7 +34,7 @@ set -euo pipefail
 usage() { sed -n 's/^#   settle-peer.sh/usage: settle-peer.sh/p' "$0" >&2; exit 2; }
 mode=${1:-}
 [ $# -ge 1 ] && shift
-peers=${PEERS:-../shared/peers/yade}
+peers=${PEERS:-out/bench/peers}
 soft=(--kn 5e3 --ks 2.5e3 --safety 0.5 --until-unbalanced 1e-3)
 case $mode in
   soft | nine)

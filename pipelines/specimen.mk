@@ -3,7 +3,7 @@
 # 288 particles each, under 100 s a group on 2 cores); the paper's full scale with
 #   make fig8 SPECIMEN="--diameter 0.3 --height 0.6"
 # (2259 particles, 11-17 minutes a group). $(OUT)/fig8.jsonl: the specimens' summaries,
-# one JSON line each (docs/pack.md, "Output").
+# one JSON line each (docs/models/pack.md, "Output").
 
 SPECIMEN ?= --diameter 0.15 --height 0.3
 GROUPS := ip ab1 ab2 ab3
