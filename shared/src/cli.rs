@@ -15,6 +15,10 @@ pub fn run(tool: &str, body: impl FnOnce() -> anyhow::Result<()>) -> ExitCode {
     match body() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
+        Err(e) if e.downcast_ref::<Usage>().is_some() => {
+            eprintln!("{tool}: {e}");
+            ExitCode::from(2)
+        }
         Err(e) => {
             let mut msg = format!("{tool}: {e}");
             for cause in e.chain().skip(1) {
@@ -24,6 +28,24 @@ pub fn run(tool: &str, body: impl FnOnce() -> anyhow::Result<()>) -> ExitCode {
             ExitCode::from(1)
         }
     }
+}
+
+/// Bad usage found after parsing (an option's value out of its range): exit code 2, as clap's
+/// own errors.
+#[derive(Debug)]
+pub struct Usage(pub String);
+
+impl std::fmt::Display for Usage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Usage {}
+
+/// An [`anyhow::Error`] of bad usage (exit code 2).
+pub fn usage(msg: impl Into<String>) -> anyhow::Error {
+    Usage(msg.into()).into()
 }
 
 fn is_broken_pipe(e: &anyhow::Error) -> bool {

@@ -109,6 +109,10 @@ struct Cli {
     /// vertices (the `simplify` tool's choice), inside it; bodies stay in place as with --abrade
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(4..))]
     simplify: Option<u32>,
+    /// Read the state numbered N (from 1), or the last, of a stream of states with other
+    /// records between them (a `triax` stream), instead of a single state
+    #[arg(long, value_name = "N|last", conflicts_with = "import_peer")]
+    frame: Option<String>,
     /// Renumber the bodies along a space-filling (Morton) curve through their centroids before
     /// running, contacts and all: neighbours in space get nearby ids, which makes a step faster
     /// (the 2000-particle bed: 1.05-1.09x on 1 thread, 1.11-1.13x on 2). The state written has
@@ -184,6 +188,36 @@ fn main() -> ExitCode {
     cli::run("dem", || run(Cli::parse()))
 }
 
+/// State `which` (a number from 1, or `last`) of the stream of states on standard input.
+fn read_frame(which: &str) -> anyhow::Result<World> {
+    let wanted = match which {
+        "last" => None,
+        n => match n.parse::<usize>() {
+            Ok(k) if k >= 1 => Some(k),
+            _ => {
+                return Err(cli::usage(format!(
+                    "--frame must be a number from 1 or 'last', got '{n}'"
+                )))
+            }
+        },
+    };
+    let (mut seen, mut last) = (0, None);
+    for item in state::StateStream::new(cli::stdin()) {
+        if let state::Item::State(w, _) = item? {
+            seen += 1;
+            if Some(seen) == wanted {
+                return Ok(*w);
+            }
+            last = Some(w);
+        }
+    }
+    match (wanted, last) {
+        (None, Some(w)) => Ok(*w),
+        (None, None) => bail!("the input holds no state"),
+        (Some(k), _) => bail!("the input holds {seen} states, not {k}"),
+    }
+}
+
 fn run(args: Cli) -> anyhow::Result<()> {
     let mut world = match &args.import_peer {
         Some(path) => {
@@ -200,7 +234,10 @@ fn run(args: Cli) -> anyhow::Result<()> {
             yade::read_peer_scene(open(path)?, settled, templates.as_deref())
                 .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
         }
-        None => state::read_world(cli::stdin())?,
+        None => match &args.frame {
+            None => state::read_world(cli::stdin())?,
+            Some(which) => read_frame(which)?,
+        },
     };
     if world.bodies.is_empty() {
         bail!("the scene has no bodies");

@@ -22,6 +22,7 @@ pub mod energy;
 pub mod integrate;
 pub mod io;
 pub mod law;
+pub mod membrane;
 pub mod parallel;
 pub mod scenes;
 pub mod shape;

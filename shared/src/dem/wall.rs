@@ -32,6 +32,7 @@ use crate::dem::collision::overlap::{
     overlap_behind_facet, overlap_half_space_kept, overlap_half_space_within, overlap_parts,
     reach_along, Beyond, Overlap, WallFound,
 };
+use crate::dem::membrane::Membrane;
 use crate::dem::shape::{Posed, Shape};
 use crate::math::{basis, box_excess, Vec3};
 use nalgebra::UnitQuaternion;
@@ -63,12 +64,14 @@ pub enum WallKind {
     },
 }
 
-/// A wall: its kind, a rigid velocity, and the force the particles pushed on it last step.
+/// A wall: its kind, a rigid velocity, the force the particles pushed on it last step, and for
+/// a facet wall whose nodes move by their own dynamics, its membrane.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Wall {
     pub kind: WallKind,
     pub velocity: Vec3,
     pub force: Vec3,
+    pub membrane: Option<Box<Membrane>>,
 }
 
 /// One body's contact with a wall: the combined overlap, the wall's surface velocity at the
@@ -151,6 +154,7 @@ impl Wall {
             kind,
             velocity: Vec3::zeros(),
             force: Vec3::zeros(),
+            membrane: None,
         }
     }
 

@@ -41,6 +41,7 @@ use crate::dem::world::World;
 use crate::geometry::mass::equivalent_diameter;
 use crate::math::{cube, random_rotation, square, Vec3};
 use crate::micro::fabric::anisotropy;
+use crate::micro::stress::coordination;
 use nalgebra::UnitQuaternion;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -955,13 +956,10 @@ pub fn summary(w: &World, p: &Params) -> Summary {
         let body = &w.bodies[b];
         equivalent_diameter(w.shapes[body.shape as usize].volume) * body.scale
     };
-    let mut ends = vec![0usize; n];
     let (mut pairs, mut fabric, mut max_overlap) = (0usize, nalgebra::Matrix3::zeros(), 0.0f64);
     for (&(partner, b), c) in &w.contacts {
         let smaller = match partner {
             Partner::Body(a) => {
-                ends[a as usize] += 1;
-                ends[b as usize] += 1;
                 pairs += 1;
                 fabric += c.normal * c.normal.transpose();
                 size(a as usize).min(size(b as usize))
@@ -971,10 +969,6 @@ pub fn summary(w: &World, p: &Params) -> Summary {
         max_overlap = max_overlap.max(c.depth / smaller);
     }
     let anisotropy = anisotropy(&fabric, pairs);
-    let (n0, n1) = (
-        ends.iter().filter(|&&e| e == 0).count(),
-        ends.iter().filter(|&&e| e == 1).count(),
-    );
     let outside = (0..n)
         .filter(|&b| {
             let body = &w.bodies[b];
@@ -987,7 +981,7 @@ pub fn summary(w: &World, p: &Params) -> Summary {
         .count();
     let (stresses, _) = wall_stresses(w);
     let phi = porosity(w);
-    let mech = n as f64 - n0 as f64 - n1 as f64;
+    let (coordination, mechanical_coordination) = coordination(w);
     Summary {
         particles: n,
         templates: w.shapes.len(),
@@ -1011,16 +1005,8 @@ pub fn summary(w: &World, p: &Params) -> Summary {
         porosity: phi,
         void_ratio: phi / (1.0 - phi),
         core_void_ratio: core_porosity(w, p.size_max).map(|c| c / (1.0 - c)),
-        coordination: if n > 0 {
-            2.0 * pairs as f64 / n as f64
-        } else {
-            0.0
-        },
-        mechanical_coordination: if mech > 0.0 {
-            (2.0 * pairs as f64 - n1 as f64) / mech
-        } else {
-            0.0
-        },
+        coordination,
+        mechanical_coordination,
         stress_error: stresses
             .iter()
             .map(|s| (s - p.pressure).abs() / p.pressure)

@@ -12,6 +12,7 @@
 use crate::dem::contacts::Partner;
 use crate::dem::energy::Energy;
 use crate::dem::law::{Contact, Material};
+use crate::dem::membrane::{Membrane, Pin};
 use crate::dem::shape::Shape;
 use crate::dem::wall::{Wall, WallKind};
 use crate::dem::world::{Body, World};
@@ -70,7 +71,17 @@ pub enum Record {
         damping: f64,
         gravity_work: f64,
         wall_work: f64,
+        /// Taken by the membranes' damping (absent without membranes).
+        #[serde(default, skip_serializing_if = "is_zero")]
+        membrane_damping: f64,
+        /// Work of the membranes' pressure (absent without membranes).
+        #[serde(default, skip_serializing_if = "is_zero")]
+        pressure_work: f64,
     },
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// A shape: either a mesh (`vertices`, `faces`; its convex hull is taken and moved to the
@@ -116,6 +127,12 @@ pub struct BodyRecord {
     pub ang_mom: [f64; 3],
     #[serde(default)]
     pub fixed: bool,
+    /// The body's mass and principal moments when they are not those of its shape at the
+    /// material's density (scaled inertia, for a quasi-static procedure), kg and kg m^2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub moments: Option<[f64; 3]>,
 }
 
 fn identity() -> [f64; 4] {
@@ -156,10 +173,73 @@ pub struct WallRecord {
     pub segments: Option<u32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radial_rate: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub membrane: Option<MembraneRecord>,
     #[serde(default)]
     pub velocity: [f64; 3],
     #[serde(default)]
     pub force: [f64; 3],
+}
+
+/// A facet wall's membrane ([`Membrane`]): its material (`young` Pa, `poisson`, `thickness` m),
+/// the `pressure` on its outer side (Pa), the mass of each node (kg), its pinned nodes
+/// (`[node, wall]`) and whether they are `sealed` to their walls or slide on them, and the
+/// nodes' `rest` positions (the unstressed membrane).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MembraneRecord {
+    pub young: f64,
+    pub poisson: f64,
+    pub thickness: f64,
+    pub pressure: f64,
+    pub node_mass: f64,
+    pub sealed: bool,
+    pub pins: Vec<[u32; 2]>,
+    pub rest: Vec<[f64; 3]>,
+}
+
+impl MembraneRecord {
+    fn of(m: &Membrane) -> MembraneRecord {
+        MembraneRecord {
+            young: m.young,
+            poisson: m.poisson,
+            thickness: m.thickness,
+            pressure: m.pressure,
+            node_mass: m.node_mass,
+            sealed: m.sealed,
+            pins: m.pins.iter().map(|p| [p.node, p.wall]).collect(),
+            rest: m.rest.iter().map(a3).collect(),
+        }
+    }
+
+    /// The membrane of a facet wall of `nodes` and `triangles`; the pins' walls are checked
+    /// once every wall is read.
+    fn to_membrane(&self, nodes: usize, triangles: &[[u32; 3]]) -> Result<Membrane, String> {
+        all_finite("membrane rest", self.rest.iter().flatten())?;
+        if self.rest.len() != nodes {
+            return Err(format!(
+                "membrane rest has {} entries for {nodes} nodes",
+                self.rest.len()
+            ));
+        }
+        let pins = (self.pins.iter())
+            .map(|&[node, wall]| Pin { node, wall })
+            .collect();
+        let rest = self.rest.iter().map(v3).collect();
+        Membrane::new(
+            self.young,
+            self.poisson,
+            self.thickness,
+            self.pressure,
+            self.node_mass,
+            rest,
+            triangles,
+            pins,
+            self.sealed,
+            usize::MAX,
+        )
+        .map_err(|e| format!("membrane: {e}"))
+    }
 }
 
 impl WallRecord {
@@ -187,6 +267,7 @@ impl WallRecord {
                 r.triangles = Some(triangles.clone());
                 r.node_velocities = Some(node_velocities.iter().map(a3).collect());
                 r.node_forces = Some(node_forces.iter().map(a3).collect());
+                r.membrane = w.membrane.as_deref().map(MembraneRecord::of);
             }
             WallKind::Cylinder {
                 point,
@@ -214,12 +295,6 @@ impl WallRecord {
             v.clone()
                 .ok_or_else(|| format!("a {kind} wall needs '{field}'"))
         }
-        fn all_finite<'a>(what: &str, xs: impl IntoIterator<Item = &'a f64>) -> Result<(), String> {
-            match xs.into_iter().find(|x| !x.is_finite()) {
-                Some(x) => Err(format!("wall {what} is not finite ({x})")),
-                None => Ok(()),
-            }
-        }
         fn unit(v: &[f64; 3], what: &str) -> Result<Vec3, String> {
             let n = v3(v).norm();
             if (n - 1.0).abs() > 1e-9 {
@@ -242,6 +317,7 @@ impl WallRecord {
             ("height", self.height.is_some()),
             ("segments", self.segments.is_some()),
             ("radial_rate", self.radial_rate.is_some()),
+            ("membrane", self.membrane.is_some()),
         ]
         .into_iter()
         .filter(|(_, set)| *set)
@@ -249,7 +325,13 @@ impl WallRecord {
         .collect();
         let allowed: &[&str] = match kind {
             "plane" => &["normal", "offset"],
-            "facets" => &["nodes", "triangles", "node_velocities", "node_forces"],
+            "facets" => &[
+                "nodes",
+                "triangles",
+                "node_velocities",
+                "node_forces",
+                "membrane",
+            ],
             "cylinder" => &[
                 "point",
                 "axis",
@@ -350,10 +432,20 @@ impl WallRecord {
                 }
             }
         };
+        let membrane = match (&self.membrane, &wall_kind) {
+            (
+                Some(m),
+                WallKind::Facets {
+                    nodes, triangles, ..
+                },
+            ) => Some(Box::new(m.to_membrane(nodes.len(), triangles)?)),
+            _ => None,
+        };
         Ok(Wall {
             kind: wall_kind,
             velocity: v3(&self.velocity),
             force: v3(&self.force),
+            membrane,
         })
     }
 }
@@ -484,12 +576,28 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 damping,
                 gravity_work,
                 wall_work,
+                membrane_damping,
+                pressure_work,
             } => {
+                finite(
+                    n,
+                    "energy",
+                    &[
+                        friction,
+                        damping,
+                        gravity_work,
+                        wall_work,
+                        membrane_damping,
+                        pressure_work,
+                    ],
+                )?;
                 energy = Energy {
                     friction,
                     damping,
                     gravity_work,
                     wall_work,
+                    membrane_damping,
+                    pressure_work,
                     ..Default::default()
                 };
             }
@@ -559,6 +667,31 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
         body.vel = v3(&b.vel);
         body.ang_mom = v3(&b.ang_mom);
         body.fixed = b.fixed;
+        match (b.mass, b.moments) {
+            (None, None) => {}
+            (Some(mass), Some(moments)) => {
+                if !(mass > 0.0
+                    && mass.is_finite()
+                    && moments.iter().all(|m| *m > 0.0 && m.is_finite()))
+                {
+                    return Err(at(
+                        n,
+                        format!(
+                            "body {}: mass and moments must be positive and finite",
+                            b.id
+                        ),
+                    ));
+                }
+                body.mass = mass;
+                body.moments = v3(&moments);
+            }
+            _ => {
+                return Err(at(
+                    n,
+                    format!("body {}: give both mass and moments, or neither", b.id),
+                ))
+            }
+        }
     }
     for (n, c) in contacts {
         let nb = world.bodies.len() as u32;
@@ -602,8 +735,194 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
         .values()
         .map(|c| c.elastic_energy(&world.material))
         .sum();
+    check_membranes(&mut world)?;
     check_fixed_overlaps(&world)?;
     Ok(world)
+}
+
+/// The record types of a state (besides its header).
+const STATE_RECORDS: [&str; 7] = [
+    "material", "clock", "shape", "body", "wall", "contact", "energy",
+];
+
+/// The `type` of a JSON-lines record: read off the line's start when it is written as the
+/// tools write it (`{"type":"...`), else from the parsed line; `None` when it has none.
+pub fn record_type(line: &str) -> Option<String> {
+    let line = line.trim_start_matches('\u{feff}').trim_start();
+    if let Some(rest) = line.strip_prefix("{\"type\":\"") {
+        if let Some(end) = rest.find('"') {
+            return Some(rest[..end].to_string());
+        }
+    }
+    let v: serde_json::Value = serde_json::from_str(line).ok()?;
+    v.get("type")?.as_str().map(str::to_string)
+}
+
+/// An item of a stream of states ([`StateStream`]).
+#[derive(Debug)]
+pub enum Item {
+    /// A record of another format between states (e.g. a procedure's settings or
+    /// measurements), with its line number.
+    Record(serde_json::Value, usize),
+    /// A complete state, with the line number of its header.
+    State(Box<World>, usize),
+}
+
+/// Reads a stream of JSON lines that holds several states, each a header and its records as
+/// [`write_world`] writes them, with records of other types between them (a `triax` stream):
+/// states are read whole, one at a time (memory bounded by one state), and the other records
+/// are handed back as they are. Errors name the line in the whole stream.
+pub struct StateStream<R: BufRead> {
+    input: R,
+    line: usize,
+    /// A line read ahead (the first after a state), with its number.
+    ahead: Option<(String, usize)>,
+    done: bool,
+}
+
+impl<R: BufRead> StateStream<R> {
+    pub fn new(input: R) -> StateStream<R> {
+        StateStream {
+            input,
+            line: 0,
+            ahead: None,
+            done: false,
+        }
+    }
+
+    /// The next line that is not blank, with its number; `None` at the end.
+    fn next_line(&mut self) -> Result<Option<(String, usize)>, StateError> {
+        if let Some(a) = self.ahead.take() {
+            return Ok(Some(a));
+        }
+        loop {
+            let mut text = String::new();
+            let read = self.input.read_line(&mut text).map_err(|e| {
+                if e.kind() == std::io::ErrorKind::InvalidData {
+                    at(self.line + 1, "not UTF-8 text")
+                } else {
+                    StateError::Io(e)
+                }
+            })?;
+            if read == 0 {
+                return Ok(None);
+            }
+            self.line += 1;
+            if !text.trim().is_empty() {
+                return Ok(Some((text, self.line)));
+            }
+        }
+    }
+}
+
+impl<R: BufRead> Iterator for StateStream<R> {
+    type Item = Result<Item, StateError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        let item = (|| {
+            let Some((text, n)) = self.next_line()? else {
+                return Ok(None);
+            };
+            match record_type(&text).as_deref() {
+                Some("header") => {}
+                Some(_) => {
+                    let v = serde_json::from_str(&text)
+                        .map_err(|e| at(n, format!("not a JSON record: {e}")))?;
+                    return Ok(Some(Item::Record(v, n)));
+                }
+                None => return Err(at(n, "not a JSON record with a \"type\"")),
+            }
+            // The state: its header and every state record after it.
+            let mut body = text;
+            while let Some((text, m)) = self.next_line()? {
+                match record_type(&text) {
+                    Some(t) if STATE_RECORDS.contains(&t.as_str()) => body.push_str(&text),
+                    _ => {
+                        self.ahead = Some((text, m));
+                        break;
+                    }
+                }
+            }
+            let world = read_world(body.as_bytes()).map_err(|e| match e {
+                StateError::Line { line, msg } => at(line + n - 1, msg),
+                e => e,
+            })?;
+            Ok(Some(Item::State(Box::new(world), n)))
+        })();
+        match item {
+            Ok(Some(item)) => Some(Ok(item)),
+            Ok(None) => {
+                self.done = true;
+                None
+            }
+            Err(e) => {
+                self.done = true;
+                Some(Err(e))
+            }
+        }
+    }
+}
+
+/// Membranes' pins name walls that exist, other than their own, and sliding pins planes; the
+/// membranes' kinetic and elastic energy into the audit.
+fn check_membranes(world: &mut World) -> Result<(), StateError> {
+    let walls = world.walls.len();
+    let (mut kinetic, mut elastic) = (0.0, 0.0);
+    for (k, w) in world.walls.iter().enumerate() {
+        let (
+            Some(m),
+            WallKind::Facets {
+                nodes,
+                triangles,
+                node_velocities,
+                ..
+            },
+        ) = (&w.membrane, &w.kind)
+        else {
+            continue;
+        };
+        for p in &m.pins {
+            let target = p.wall as usize;
+            let why = if target >= walls {
+                "names no wall"
+            } else if target == k {
+                "names its own wall"
+            } else if !m.sealed && !matches!(world.walls[target].kind, WallKind::Plane { .. }) {
+                "slides on a wall that is not a plane"
+            } else {
+                continue;
+            };
+            return Err(StateError::Scene(format!(
+                "wall {k}: the membrane's pin of node {} on wall {} {why}",
+                p.node, p.wall
+            )));
+        }
+        elastic += m.elastic_energy(nodes, triangles);
+        kinetic += (node_velocities.iter().enumerate())
+            .filter(|(i, _)| m.pin_of(*i).is_none() || !m.sealed)
+            .map(|(i, v)| {
+                let v = match m.pin_of(i).map(|w| &world.walls[w as usize].kind) {
+                    Some(WallKind::Plane { normal, .. }) => v - normal * normal.dot(v),
+                    _ => *v,
+                };
+                0.5 * m.node_mass * v.norm_squared()
+            })
+            .sum::<f64>();
+    }
+    world.energy.membrane_kinetic = kinetic;
+    world.energy.membrane_elastic = elastic;
+    Ok(())
+}
+
+/// An error naming a wall's field `what` if one of `xs` is not finite.
+fn all_finite<'a>(what: &str, xs: impl IntoIterator<Item = &'a f64>) -> Result<(), String> {
+    match xs.into_iter().find(|x| !x.is_finite()) {
+        Some(x) => Err(format!("wall {what} is not finite ({x})")),
+        None => Ok(()),
+    }
 }
 
 /// Records of one kind come with ids 0, 1, 2, ... in order.
@@ -751,6 +1070,8 @@ pub fn write_world<W: Write>(world: &World, mut out: W) -> std::io::Result<()> {
     }
     for (id, b) in world.bodies.iter().enumerate() {
         let q = b.rot.quaternion();
+        let (mass, moments) = world.inertia_of(b.shape, b.scale);
+        let scaled = (b.mass, b.moments) != (mass, moments);
         line(&Record::Body(BodyRecord {
             id: id as u32,
             shape: b.shape,
@@ -760,6 +1081,8 @@ pub fn write_world<W: Write>(world: &World, mut out: W) -> std::io::Result<()> {
             vel: a3(&b.vel),
             ang_mom: a3(&b.ang_mom),
             fixed: b.fixed,
+            mass: scaled.then_some(b.mass),
+            moments: scaled.then(|| a3(&b.moments)),
         }))?;
     }
     for (id, w) in world.walls.iter().enumerate() {
@@ -788,6 +1111,8 @@ pub fn write_world<W: Write>(world: &World, mut out: W) -> std::io::Result<()> {
         damping: e.damping,
         gravity_work: e.gravity_work,
         wall_work: e.wall_work,
+        membrane_damping: e.membrane_damping,
+        pressure_work: e.pressure_work,
     })?;
     Ok(())
 }

@@ -33,7 +33,7 @@ use crate::dem::energy::Energy;
 use crate::dem::law::{flat_potential, Contact, Material};
 use crate::dem::parallel::filter_map_maybe_par;
 use crate::dem::shape::{Posed, Remade, Shape};
-use crate::dem::wall::Wall;
+use crate::dem::wall::{Wall, WallKind};
 use crate::math::{cube, pow5, Vec3};
 use nalgebra::UnitQuaternion;
 use step::Buffers;
@@ -375,6 +375,18 @@ impl World {
     pub fn critical_dt(&self) -> f64 {
         (self.critical_dts().iter())
             .map(|&(t, r)| t.min(r))
+            .fold(self.membranes_critical_dt(), f64::min)
+    }
+
+    /// The smallest critical step of the membranes' nodes ([`crate::dem::membrane::Membrane::critical_dt`]), infinite
+    /// without membranes.
+    pub fn membranes_critical_dt(&self) -> f64 {
+        let k = self.material.kn.max(self.material.ks);
+        (self.walls.iter())
+            .filter_map(|w| match (&w.kind, &w.membrane) {
+                (WallKind::Facets { triangles, .. }, Some(m)) => Some(m.critical_dt(triangles, k)),
+                _ => None,
+            })
             .fold(f64::INFINITY, f64::min)
     }
 

@@ -11,6 +11,7 @@ use crate::dem::collision::overlap::{
 use crate::dem::contacts::{Carry, ContactKey, Cursor, Part, Partner};
 use crate::dem::integrate::{free_rotations, local_damping};
 use crate::dem::law::{self, Contact, Material};
+use crate::dem::membrane;
 use crate::dem::parallel::{parallel, spread, Awake};
 use crate::dem::shape::{Posed, Travel};
 use crate::dem::wall::{FacetGrid, WallKind};
@@ -221,6 +222,7 @@ impl World {
         // the last step's forces at the velocity it moved with (a servo sets the velocity
         // between steps; moved after the forces, the contacts saw the next step's velocity
         // against the bodies' last, and the stored work drifted by each change of speed).
+        membrane::pin_velocities(&mut self.walls);
         for w in &mut self.walls {
             w.advance(dt);
         }
@@ -241,10 +243,33 @@ impl World {
         self.broad = broad;
         self.separations = gaps;
         let (chunks, old_parts) = self.integrate(narrow, &poses.omegas, par);
+        self.move_membranes(par);
         self.posed = posed;
         buffers.give_back(chunks, old_parts);
         self.buffers = buffers;
         self.times.integration += lap();
+    }
+
+    /// Each membrane's nodes kicked by this step's forces (see [`membrane::kick`]), and their
+    /// energy into the audit.
+    fn move_membranes(&mut self, par: bool) {
+        let (kinetic, elastic) = (
+            &mut self.energy.membrane_kinetic,
+            &mut self.energy.membrane_elastic,
+        );
+        *kinetic = 0.0;
+        *elastic = 0.0;
+        for k in 0..self.walls.len() {
+            if self.walls[k].membrane.is_none() {
+                continue;
+            }
+            let e = membrane::kick(&mut self.walls, k, self.dt, self.material.damping, par);
+            self.energy.membrane_kinetic += e.kinetic;
+            self.energy.membrane_elastic += e.elastic;
+            self.energy.membrane_damping += e.damping;
+            self.energy.pressure_work += e.pressure_work;
+            self.energy.wall_work += e.wall_work;
+        }
     }
 
     /// Poses every body and lists the pairs whose boxes may overlap, with the gap proofs
@@ -675,8 +700,12 @@ impl World {
             for (((t, x), c), key) in wall_touches.iter().zip(wall_contacts).zip(&wall_keys) {
                 sums.add(c, t, material);
                 if let Partner::Wall(w) = key.0 {
-                    walls[w as usize].push(&-t.force, &x.node_weights);
-                    wall_work += x.wall_work;
+                    let wall = &mut walls[w as usize];
+                    wall.push(&-t.force, &x.node_weights);
+                    // A membrane's contacts are internal (see `membrane`).
+                    if wall.membrane.is_none() {
+                        wall_work += x.wall_work;
+                    }
                 }
             }
             let last_kept = contacts.take_kept();

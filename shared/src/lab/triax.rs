@@ -1,0 +1,865 @@
+//! The drained conventional triaxial test with a flexible membrane (the `triax` tool).
+//!
+//! From a specimen made by [`crate::lab::pack`] in a cylinder between two platens:
+//! 1. **Membrane.** The rigid cylinder is swapped for a membrane ([`crate::dem::membrane`]): a
+//!    triangulated cylinder, its facets no larger than `edge` (by default the smallest
+//!    particle's size), just outside the cylinder's facets (its chords on the cylinder's
+//!    circle, so no particle overlaps it), its end rings sealed to the platens, the
+//!    confining pressure on its outer side.
+//! 2. **Consolidation.** The platens follow PFC's servo to the same pressure while the membrane
+//!    holds it on the side, until both platens are within `tolerance` of it and the
+//!    unbalanced-force ratio is below `unbalanced`: isotropic consolidation on the membrane.
+//! 3. **Loading.** The platens approach each other at a constant logarithmic strain rate
+//!    (each at half the speed `rate x H`), the confining pressure held on the membrane, until
+//!    the axial strain `ln(H0 / H)` reaches `final_strain`. A measurement ([`Measure`]) every
+//!    `every` of strain, a frame (the whole state) every `frame_every`, at the start of loading
+//!    and at the end.
+//!
+//! Inertia: unless `inertia_scaling` is off, every body's mass is scaled as in the preparation
+//! ([`crate::lab::inertia::scale_inertia`]), and the states written keep the scaled masses (a
+//! restart continues the same dynamics). The membrane's nodes get a mass that makes their
+//! critical step, against the contacts' `kn` and the membrane's own stiffness, the bodies'
+//! ([`node_mass`]).
+
+use crate::dem::contacts::{Contacts, Partner};
+use crate::dem::membrane::{Membrane, Pin};
+use crate::dem::parallel::on_pool;
+use crate::dem::wall::{Wall, WallKind};
+use crate::dem::world::World;
+use crate::geometry::mass::equivalent_diameter;
+use crate::lab::boundary::{container, Section, WallGeometry, BOTTOM, SIDE, TOP};
+use crate::lab::inertia::scale_inertia;
+use crate::lab::servo::{servo, set_speeds, ServoLaw};
+use crate::math::Vec3;
+use crate::micro::stress::{contact_stress, coordination, invariants};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+use thiserror::Error;
+
+/// How to run the test (SI units). Defaults: the paper's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Params {
+    /// Confining pressure, Pa (on the membrane, and on the platens during consolidation).
+    pub pressure: f64,
+    /// Axial strain `ln(H0 / H)` at which loading ends.
+    pub final_strain: f64,
+    /// Axial strain rate during loading, 1/s.
+    pub rate: f64,
+    /// The membrane's Young's modulus (Pa), Poisson's ratio and thickness (m).
+    pub young: f64,
+    pub poisson: f64,
+    pub thickness: f64,
+    /// The membrane's largest facet edge, m (`None`: the smallest particle's size).
+    pub edge: Option<f64>,
+    /// Axial strain between measurements, and between frames.
+    pub every: f64,
+    pub frame_every: f64,
+    /// Scale the bodies' inertia for a quasi-static test.
+    pub inertia_scaling: bool,
+    /// Time step over the critical one.
+    pub safety: f64,
+    /// Consolidation ends with both platens within this relative tolerance of the pressure and
+    /// the unbalanced-force ratio below `unbalanced`.
+    pub tolerance: f64,
+    pub unbalanced: f64,
+    /// The platens' servo during consolidation: gain and largest strain rate (1/s).
+    pub gain: f64,
+    pub max_strain_rate: f64,
+    /// Steps that consolidation may take.
+    pub max_steps: u64,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            pressure: 1e5,
+            final_strain: 0.15,
+            rate: 0.5,
+            young: 7.8e6,
+            poisson: 0.5,
+            thickness: 2e-3,
+            edge: None,
+            every: 1e-3,
+            frame_every: 5e-3,
+            inertia_scaling: true,
+            safety: 0.2,
+            tolerance: 0.02,
+            unbalanced: 1e-3,
+            gain: 0.5,
+            max_strain_rate: 4.0,
+            max_steps: 2_000_000,
+        }
+    }
+}
+
+/// Why no test.
+#[derive(Debug, Error, PartialEq)]
+pub enum TriaxError {
+    /// A parameter out of its range: the [`Params`] field and what it must be.
+    #[error("{field} {rule}")]
+    Param { field: &'static str, rule: String },
+    #[error("the specimen is not a pack specimen in a cylinder (walls: bottom platen, top platen, cylinder): {0}")]
+    NotCylinder(String),
+    #[error("the state is not a triaxial test's: {0}")]
+    NotTriax(String),
+    #[error("the membrane: {0}")]
+    Membrane(String),
+    #[error("not consolidated after {steps} steps: platen stresses {stresses:?} Pa against {target} Pa, unbalanced-force ratio {unbalanced:.3e}")]
+    NotConsolidated {
+        steps: u64,
+        stresses: [f64; 2],
+        target: f64,
+        unbalanced: f64,
+    },
+    #[error(
+        "a particle left the membrane at step {step}: body {body} is {distance:.4e} m outside"
+    )]
+    Escaped {
+        step: u64,
+        body: usize,
+        distance: f64,
+    },
+}
+
+impl Params {
+    /// Checks every parameter.
+    pub fn check(&self) -> Result<(), TriaxError> {
+        let bad = |field: &'static str, rule: String| Err(TriaxError::Param { field, rule });
+        for (field, v) in [
+            ("pressure", self.pressure),
+            ("rate", self.rate),
+            ("young", self.young),
+            ("thickness", self.thickness),
+            ("every", self.every),
+            ("frame_every", self.frame_every),
+            ("tolerance", self.tolerance),
+            ("unbalanced", self.unbalanced),
+            ("max_strain_rate", self.max_strain_rate),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return bad(field, format!("must be a positive number, got {v}"));
+            }
+        }
+        if let Some(e) = self.edge {
+            if !(e > 0.0 && e.is_finite()) {
+                return bad("edge", format!("must be a positive length, got {e}"));
+            }
+        }
+        if !(self.final_strain > 0.0 && self.final_strain < 1.0) {
+            return bad(
+                "final_strain",
+                format!("must be in (0, 1), got {}", self.final_strain),
+            );
+        }
+        if !(0.0..=0.5).contains(&self.poisson) {
+            return bad(
+                "poisson",
+                format!("must be in [0, 0.5], got {}", self.poisson),
+            );
+        }
+        for (field, v) in [("safety", self.safety), ("gain", self.gain)] {
+            if !(v > 0.0 && v <= 1.0) {
+                return bad(field, format!("must be in (0, 1], got {v}"));
+            }
+        }
+        if self.max_steps == 0 {
+            return bad("max_steps", "must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+/// The membrane of the test: the facet wall's index among the walls.
+pub const MEMBRANE: usize = SIDE;
+
+/// Nodes and triangles of a cylinder of facets about the z axis from `bottom` to `top`, its
+/// chords at distance `apothem` from the axis, no edge longer than about `edge`: rings of
+/// `segments` nodes, every other ring turned by half a segment (near-equilateral triangles),
+/// the triangles counter-clockwise seen from the axis. Returns the bottom and top rings' nodes
+/// too.
+pub fn cylinder_membrane(
+    apothem: f64,
+    bottom: f64,
+    top: f64,
+    edge: f64,
+) -> (Vec<Vec3>, Vec<[u32; 3]>, Vec<u32>, Vec<u32>) {
+    let segments = ((2.0 * PI * apothem / edge).ceil() as usize).max(12);
+    let step = 2.0 * PI / segments as f64;
+    let radius = apothem / (0.5 * step).cos();
+    let height = top - bottom;
+    let rings = ((height / (edge * 3f64.sqrt() / 2.0)).ceil() as usize).max(2);
+    let mut nodes = Vec::with_capacity((rings + 1) * segments);
+    for k in 0..=rings {
+        let z = if k == rings {
+            top
+        } else {
+            bottom + height * k as f64 / rings as f64
+        };
+        let turn = if k % 2 == 1 { 0.5 } else { 0.0 };
+        for j in 0..segments {
+            let a = step * (j as f64 + turn);
+            nodes.push(Vec3::new(radius * a.cos(), radius * a.sin(), z));
+        }
+    }
+    let id = |k: usize, j: usize| (k * segments + j % segments) as u32;
+    let mut triangles = Vec::with_capacity(2 * rings * segments);
+    for k in 0..rings {
+        for j in 0..segments {
+            let tris = if k % 2 == 0 {
+                // Ring k+1 is turned by half a segment: its node j sits between k's j and j+1.
+                [
+                    [id(k, j), id(k, j + 1), id(k + 1, j)],
+                    [id(k, j + 1), id(k + 1, j + 1), id(k + 1, j)],
+                ]
+            } else {
+                [
+                    [id(k, j), id(k + 1, j + 1), id(k + 1, j)],
+                    [id(k, j), id(k, j + 1), id(k + 1, j + 1)],
+                ]
+            };
+            for mut t in tris {
+                // Counter-clockwise seen from the axis: the normal points inwards.
+                let [a, b, c] = t.map(|i| nodes[i as usize]);
+                let n = (b - a).cross(&(c - a));
+                let mid = (a + b + c) / 3.0;
+                if n.dot(&Vec3::new(mid.x, mid.y, 0.0)) > 0.0 {
+                    t.swap(1, 2);
+                }
+                triangles.push(t);
+            }
+        }
+    }
+    let bottom_ring = (0..segments).map(|j| id(0, j)).collect();
+    let top_ring = (0..segments).map(|j| id(rings, j)).collect();
+    (nodes, triangles, bottom_ring, top_ring)
+}
+
+/// The node mass that makes a node's critical step `dt` against contacts of stiffness `kn` and
+/// the membrane's own stiffness at a node `k_membrane`: `(kn + k_membrane) dt^2`.
+pub fn node_mass(kn: f64, k_membrane: f64, dt: f64) -> f64 {
+    (kn + k_membrane) * dt * dt
+}
+
+/// Where the test is, carried in every frame so that a run resumes from it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Progress {
+    /// "consolidation" or "loading".
+    pub phase: String,
+    /// Height and enclosed volume at the start of loading (the strains' references).
+    pub height0: f64,
+    pub volume0: f64,
+    /// Measurements and frames written so far in loading (the next are at these times
+    /// `every`, `frame_every`).
+    pub measures: u64,
+    pub frames: u64,
+    /// The step at which loading started.
+    pub start_step: u64,
+}
+
+/// What the test measures, every `every` of axial strain (SI units, compression positive).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Measure {
+    pub step: u64,
+    pub time: f64,
+    /// `ln(H0 / H)`.
+    pub axial_strain: f64,
+    /// `ln(V0 / V)`, `V` the volume the membrane and the platens enclose.
+    pub volumetric_strain: f64,
+    pub height: f64,
+    pub volume: f64,
+    /// The platens' mean stress (their normal forces over the end area), Pa.
+    pub sigma1: f64,
+    /// The confining pressure, Pa.
+    pub sigma3: f64,
+    /// The bottom and top platens' stresses, Pa.
+    pub platens: [f64; 2],
+    /// The boundary's `q_g = sigma1 - sigma3`, `p_g = (sigma1 + 2 sigma3) / 3` and their
+    /// ratio (Eq. 20).
+    pub q_boundary: f64,
+    pub p_boundary: f64,
+    pub ratio_boundary: f64,
+    /// The average stress from the contacts (Eq. 8, wall contacts with their half branch from
+    /// the contact point to the body: see [`contact_stress`]) over `volume`, symmetric part:
+    /// xx, yy, zz, xy, xz, yz.
+    pub stress: [f64; 6],
+    /// Its `p`, `q` (Eq. 9) and `q / p`.
+    pub p: f64,
+    pub q: f64,
+    pub ratio: f64,
+    /// `p` from the particle pairs alone.
+    pub p_pairs: f64,
+    /// The membrane's contacts' outward radial force over its area, Pa: the confining pressure
+    /// less what the membrane's own tension carries.
+    pub membrane_stress: f64,
+    /// Particle-particle contacts x 2 over particles, and without rattlers.
+    pub coordination: f64,
+    pub mechanical_coordination: f64,
+    /// The membrane's free nodes' mean and largest distance from the axis, m.
+    pub radius_mean: f64,
+    pub radius_max: f64,
+    /// `rate d sqrt(rho / p)`: `d` the mean particle size, `rho` the bodies' mass (scaled,
+    /// when it is) over their volume.
+    pub inertial: f64,
+    pub unbalanced: f64,
+    pub contacts: usize,
+}
+
+/// A test under way: the world and where the test is.
+pub struct Triax {
+    pub world: World,
+    pub params: Params,
+    pub progress: Progress,
+    /// The bottom and top rings of the membrane (pinned to the platens).
+    rings: [Vec<u32>; 2],
+    /// Mean equivalent diameter of the particles, m, and their solid volume, m^3.
+    size: f64,
+    solid: f64,
+}
+
+/// What the test hands its caller as it goes.
+pub enum Event<'a> {
+    /// Consolidation's progress, every `every_steps`: step, platen stresses, unbalanced ratio.
+    Consolidating(u64, [f64; 2], f64),
+    Measure(&'a Measure),
+    /// A frame: the world and the progress to resume from.
+    Frame(&'a World, &'a Progress),
+}
+
+impl Triax {
+    /// The test on a pack specimen: the cylinder swapped for the membrane, inertia scaled, the
+    /// time step set. Not yet consolidated.
+    pub fn new(mut world: World, params: Params) -> Result<Triax, TriaxError> {
+        params.check()?;
+        let bounds = container(&world)
+            .ok_or_else(|| TriaxError::NotCylinder("its walls are not a pack container".into()))?;
+        let Section::Circle { radius, .. } = bounds.section else {
+            return Err(TriaxError::NotCylinder("a box".into()));
+        };
+        if world.bodies.is_empty() {
+            return Err(TriaxError::NotCylinder("no particles".into()));
+        }
+        let sizes: Vec<f64> = (world.bodies.iter())
+            .map(|b| equivalent_diameter(world.shapes[b.shape as usize].volume) * b.scale)
+            .collect();
+        let smallest = sizes.iter().copied().fold(f64::INFINITY, f64::min);
+        let edge = params.edge.unwrap_or(smallest);
+        let (nodes, triangles, bottom, top) =
+            cylinder_membrane(radius, bounds.bottom, bounds.top, edge);
+        let pins = (bottom.iter().map(|&node| Pin {
+            node,
+            wall: BOTTOM as u32,
+        }))
+        .chain(top.iter().map(|&node| Pin {
+            node,
+            wall: TOP as u32,
+        }))
+        .collect();
+        // The contacts with the cylinder go with it.
+        let kept: Vec<_> = (world.contacts.iter())
+            .filter(|(k, _)| k.0 != Partner::Wall(MEMBRANE as u32))
+            .map(|(k, c)| (*k, c.clone()))
+            .collect();
+        world.contacts = Contacts::from_sorted(&kept, false, |x| x.0, |x| x.1.clone());
+        let mut membrane = Membrane::new(
+            params.young,
+            params.poisson,
+            params.thickness,
+            params.pressure,
+            1.0,
+            nodes.clone(),
+            &triangles,
+            pins,
+            true,
+            world.walls.len(),
+        )
+        .map_err(|e| TriaxError::Membrane(e.to_string()))?;
+        if params.inertia_scaling {
+            scale_inertia(&mut world);
+        }
+        let bodies_dt = (world.critical_dts().iter())
+            .map(|&(t, r)| t.min(r))
+            .fold(f64::INFINITY, f64::min);
+        let kn = world.material.kn.max(world.material.ks);
+        membrane.node_mass = node_mass(kn, membrane.node_stiffness(&triangles), bodies_dt);
+        let mut wall = Wall::facets(nodes, triangles);
+        wall.membrane = Some(Box::new(membrane));
+        world.walls[MEMBRANE] = wall;
+        for w in &mut world.walls {
+            w.velocity = Vec3::zeros();
+        }
+        world.dt = params.safety * world.critical_dt();
+        let solid = (world.bodies.iter())
+            .map(|b| world.shapes[b.shape as usize].volume * b.scale.powi(3))
+            .sum();
+        Ok(Triax {
+            size: sizes.iter().sum::<f64>() / sizes.len() as f64,
+            solid,
+            rings: [bottom, top],
+            progress: Progress {
+                phase: "consolidation".into(),
+                height0: 0.0,
+                volume0: 0.0,
+                measures: 0,
+                frames: 0,
+                start_step: 0,
+            },
+            world,
+            params,
+        })
+    }
+
+    /// A test resumed from one of its frames: the world as written and its progress.
+    pub fn resume(world: World, params: Params, progress: Progress) -> Result<Triax, TriaxError> {
+        params.check()?;
+        let not = |why: &str| TriaxError::NotTriax(why.into());
+        let (WallKind::Facets { nodes, .. }, Some(m)) = (
+            &world
+                .walls
+                .get(MEMBRANE)
+                .ok_or_else(|| not("no membrane wall"))?
+                .kind,
+            &world.walls[MEMBRANE].membrane,
+        ) else {
+            return Err(not("wall 2 is not a membrane"));
+        };
+        let ring = |wall: usize| -> Vec<u32> {
+            (m.pins.iter())
+                .filter(|p| p.wall as usize == wall)
+                .map(|p| p.node)
+                .collect()
+        };
+        let rings = [ring(BOTTOM), ring(TOP)];
+        if rings.iter().any(|r| r.len() < 3) || nodes.is_empty() {
+            return Err(not("the membrane's ends are not sealed to the platens"));
+        }
+        let sizes: Vec<f64> = (world.bodies.iter())
+            .map(|b| equivalent_diameter(world.shapes[b.shape as usize].volume) * b.scale)
+            .collect();
+        if sizes.is_empty() {
+            return Err(not("no particles"));
+        }
+        let solid = (world.bodies.iter())
+            .map(|b| world.shapes[b.shape as usize].volume * b.scale.powi(3))
+            .sum();
+        Ok(Triax {
+            size: sizes.iter().sum::<f64>() / sizes.len() as f64,
+            solid,
+            rings,
+            progress,
+            world,
+            params,
+        })
+    }
+
+    /// The platens' z, bottom and top.
+    fn platens(&self) -> [f64; 2] {
+        let z = |k: usize| match &self.world.walls[k].kind {
+            WallKind::Plane { normal, offset } => offset / normal.z,
+            _ => f64::NAN,
+        };
+        [z(BOTTOM), z(TOP)]
+    }
+
+    fn nodes(&self) -> &[Vec3] {
+        match &self.world.walls[MEMBRANE].kind {
+            WallKind::Facets { nodes, .. } => nodes,
+            _ => &[],
+        }
+    }
+
+    /// The area of the membrane's end `k` (0 bottom, 1 top): its ring's polygon, seen along z.
+    fn end_area(&self, k: usize) -> f64 {
+        let nodes = self.nodes();
+        let ring = &self.rings[k];
+        let n = ring.len();
+        (0..n)
+            .map(|i| {
+                let (a, b) = (nodes[ring[i] as usize], nodes[ring[(i + 1) % n] as usize]);
+                0.5 * (a.x * b.y - b.x * a.y)
+            })
+            .sum::<f64>()
+            .abs()
+    }
+
+    /// The volume the membrane and the platens enclose: the membrane's triangles and each end's
+    /// ring polygon closed by a fan about its centroid, by the divergence theorem (exact for
+    /// the polyhedron they bound).
+    pub fn volume(&self) -> f64 {
+        let WallKind::Facets {
+            nodes, triangles, ..
+        } = &self.world.walls[MEMBRANE].kind
+        else {
+            return f64::NAN;
+        };
+        let det = |a: &Vec3, b: &Vec3, c: &Vec3| a.dot(&b.cross(c));
+        // The membrane's triangles face inwards: minus their terms.
+        let mut six = -triangles
+            .iter()
+            .map(|t| {
+                det(
+                    &nodes[t[0] as usize],
+                    &nodes[t[1] as usize],
+                    &nodes[t[2] as usize],
+                )
+            })
+            .sum::<f64>();
+        for (k, ring) in self.rings.iter().enumerate() {
+            let n = ring.len();
+            let centre = ring.iter().map(|&i| nodes[i as usize]).sum::<Vec3>() / n as f64;
+            // The rings run counter-clockwise about +z (as built), so the fan faces +z: the
+            // bottom's outward normal is -z.
+            let sign = if k == 0 { -1.0 } else { 1.0 };
+            six += sign
+                * (0..n)
+                    .map(|i| {
+                        let (a, b) = (nodes[ring[i] as usize], nodes[ring[(i + 1) % n] as usize]);
+                        det(&centre, &a, &b)
+                    })
+                    .sum::<f64>();
+        }
+        six / 6.0
+    }
+
+    /// The platens' stresses (their normal force over the end area) and contact counts.
+    fn platen_stresses(&self) -> ([f64; 2], [usize; 2]) {
+        let mut counts = [0usize; 2];
+        let first = self.world.contacts.lower_bound(&(Partner::Wall(0), 0));
+        for (&(partner, _), _) in self.world.contacts.iter().skip(first) {
+            if let Partner::Wall(k) = partner {
+                if let Some(n) = counts.get_mut(k as usize) {
+                    *n += 1;
+                }
+            }
+        }
+        let stress = |k: usize| {
+            let w = &self.world.walls[k];
+            match &w.kind {
+                WallKind::Plane { normal, .. } => -w.force.dot(normal) / self.end_area(k),
+                _ => f64::NAN,
+            }
+        };
+        ([stress(BOTTOM), stress(TOP)], counts)
+    }
+
+    /// Measures the specimen as it is now.
+    pub fn measure(&self) -> Measure {
+        let w = &self.world;
+        let [zb, zt] = self.platens();
+        let height = zt - zb;
+        let volume = self.volume();
+        let (platens, _) = self.platen_stresses();
+        let sigma1 = 0.5 * (platens[0] + platens[1]);
+        let sigma3 = self.params.pressure;
+        let (full, pairs) = contact_stress(w, volume);
+        let (p, q) = invariants(&full);
+        let (p_pairs, _) = invariants(&pairs);
+        let (coordination, mechanical_coordination) = coordination(w);
+        // The membrane: its contacts' outward radial push over its area, and its radius.
+        let (mut push, mut area) = (0.0, 0.0);
+        let mut radii = Vec::new();
+        if let WallKind::Facets {
+            nodes, triangles, ..
+        } = &w.walls[MEMBRANE].kind
+        {
+            area = (triangles.iter())
+                .map(|t| {
+                    let [a, b, c] = t.map(|i| nodes[i as usize]);
+                    0.5 * (b - a).cross(&(c - a)).norm()
+                })
+                .sum();
+            let m = w.walls[MEMBRANE].membrane.as_deref();
+            radii = (nodes.iter().enumerate())
+                .filter(|(i, _)| m.is_some_and(|m| m.pin_of(*i).is_none()))
+                .map(|(_, x)| x.xy().norm())
+                .collect();
+        }
+        let first = w.contacts.lower_bound(&(Partner::Wall(MEMBRANE as u32), 0));
+        for (&(partner, _), c) in w.contacts.iter().skip(first) {
+            if partner != Partner::Wall(MEMBRANE as u32) {
+                break;
+            }
+            let out = Vec3::new(c.point.x, c.point.y, 0.0);
+            let len = out.norm();
+            if len > 0.0 {
+                push += (c.normal * c.normal_force + c.shear).dot(&out) * -1.0 / len;
+            }
+        }
+        let mass: f64 = w.bodies.iter().map(|b| b.mass).sum();
+        let density = mass / self.solid;
+        let strain = |a: f64, b: f64| if b > 0.0 { (b / a).ln() } else { 0.0 };
+        let radius_mean = radii.iter().sum::<f64>() / radii.len().max(1) as f64;
+        let radius_max = radii.iter().copied().fold(0.0, f64::max);
+        Measure {
+            step: w.step,
+            time: w.time,
+            axial_strain: strain(height, self.progress.height0),
+            volumetric_strain: strain(volume, self.progress.volume0),
+            height,
+            volume,
+            sigma1,
+            sigma3,
+            platens,
+            q_boundary: sigma1 - sigma3,
+            p_boundary: (sigma1 + 2.0 * sigma3) / 3.0,
+            ratio_boundary: 3.0 * (sigma1 - sigma3) / (sigma1 + 2.0 * sigma3),
+            stress: [
+                full[(0, 0)],
+                full[(1, 1)],
+                full[(2, 2)],
+                full[(0, 1)],
+                full[(0, 2)],
+                full[(1, 2)],
+            ],
+            p,
+            q,
+            ratio: if p != 0.0 { q / p } else { 0.0 },
+            p_pairs,
+            membrane_stress: if area > 0.0 { push / area } else { 0.0 },
+            coordination,
+            mechanical_coordination,
+            radius_mean,
+            radius_max,
+            inertial: self.params.rate * self.size * (density / self.params.pressure).sqrt(),
+            unbalanced: w.unbalanced,
+            contacts: w.contacts.len(),
+        }
+    }
+
+    /// Step 2: the platens servo to the pressure while the membrane holds it, until both are
+    /// within the tolerance and the specimen is in equilibrium; the platens then stop.
+    /// `report` sees the progress every `every_steps`.
+    pub fn consolidate(
+        &mut self,
+        every_steps: u64,
+        report: &mut (impl FnMut(Event) + Send),
+    ) -> Result<(), TriaxError> {
+        let p = &self.params;
+        let law = ServoLaw {
+            pressure: p.pressure,
+            gain: p.gain,
+            max_strain_rate: p.max_strain_rate,
+            loose_strain_rate: p.max_strain_rate,
+            integral_steps: 0,
+            tolerance: p.tolerance,
+        };
+        let start = self.world.step;
+        let outcome = on_pool(|| loop {
+            let (stresses, counts) = self.platen_stresses();
+            let done = stresses.iter().all(|s| {
+                (s - self.params.pressure).abs() <= self.params.tolerance * self.params.pressure
+            }) && self.world.unbalanced < self.params.unbalanced;
+            let steps = self.world.step - start;
+            if steps > 0 && steps % every_steps == 0 {
+                report(Event::Consolidating(steps, stresses, self.world.unbalanced));
+            }
+            if done && steps > 0 {
+                return Ok(());
+            }
+            if steps >= self.params.max_steps {
+                return Err(TriaxError::NotConsolidated {
+                    steps,
+                    stresses,
+                    target: self.params.pressure,
+                    unbalanced: self.world.unbalanced,
+                });
+            }
+            let [zb, zt] = self.platens();
+            let half = 0.5 * (zt - zb);
+            let geometry: Vec<WallGeometry> = (0..2)
+                .map(|k| WallGeometry {
+                    area: self.end_area(k),
+                    half,
+                    weight: 0.5,
+                })
+                .collect();
+            let speeds = servo(&self.world, &law, &geometry, &stresses, &counts, None);
+            set_speeds(&mut self.world, &speeds);
+            self.world.step();
+        });
+        set_speeds(&mut self.world, &[0.0, 0.0]);
+        outcome?;
+        let [zb, zt] = self.platens();
+        self.progress = Progress {
+            phase: "loading".into(),
+            height0: zt - zb,
+            volume0: self.volume(),
+            measures: 0,
+            frames: 0,
+            start_step: self.world.step,
+        };
+        Ok(())
+    }
+
+    /// Step 3: loading from where the progress is to `final_strain` (or `stop_at`, if lower:
+    /// the run then ends with a frame there, from which it resumes), with the measurements and
+    /// frames handed to `sink` as they come. Every particle is checked to be inside the
+    /// membrane at each measurement.
+    pub fn load(
+        &mut self,
+        stop_at: Option<f64>,
+        sink: &mut (impl FnMut(Event) + Send),
+    ) -> Result<(), TriaxError> {
+        let end = stop_at.map_or(self.params.final_strain, |s| {
+            s.min(self.params.final_strain)
+        });
+        let (every, frame_every) = (self.params.every, self.params.frame_every);
+        on_pool(|| loop {
+            let [zb, zt] = self.platens();
+            let strain = (self.progress.height0 / (zt - zb)).ln();
+            let finished = strain >= end;
+            let measure_due = strain >= self.progress.measures as f64 * every;
+            let frame_due = strain >= self.progress.frames as f64 * frame_every;
+            if measure_due || finished {
+                let m = self.measure();
+                self.check_contained()?;
+                if measure_due {
+                    self.progress.measures = (strain / every).floor() as u64 + 1;
+                }
+                sink(Event::Measure(&m));
+            }
+            if frame_due || finished {
+                if frame_due {
+                    self.progress.frames = (strain / frame_every).floor() as u64 + 1;
+                }
+                sink(Event::Frame(&self.world, &self.progress));
+            }
+            if finished {
+                return Ok(());
+            }
+            let v = self.params.rate * (zt - zb);
+            self.world.walls[BOTTOM].velocity = Vec3::z() * (0.5 * v);
+            self.world.walls[TOP].velocity = -Vec3::z() * (0.5 * v);
+            self.world.step();
+        })
+    }
+
+    /// Every particle's centroid inside the membrane's surface (the nearest ring of nodes'
+    /// polygon about the axis, with a particle's size as slack) and between the platens.
+    fn check_contained(&self) -> Result<(), TriaxError> {
+        let nodes = self.nodes();
+        let m = self.world.walls[MEMBRANE].membrane.as_deref();
+        let outer = (nodes.iter().enumerate())
+            .filter(|(i, _)| m.is_some_and(|m| m.pin_of(*i).is_none()))
+            .map(|(_, x)| x.xy().norm())
+            .fold(0.0, f64::max);
+        let [zb, zt] = self.platens();
+        for (i, b) in self.world.bodies.iter().enumerate() {
+            let out = (b.pos.xy().norm() - outer)
+                .max(zb - b.pos.z)
+                .max(b.pos.z - zt);
+            if out > 0.0 {
+                return Err(TriaxError::Escaped {
+                    step: self.world.step,
+                    body: i,
+                    distance: out,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The test's macroscopic results (digest section 5), from its measurements in loading.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Summary {
+    /// The largest `q_boundary`, Pa, and the axial strain where it is.
+    pub peak_q: f64,
+    pub peak_strain: f64,
+    /// Secant modulus at half the peak: `(peak_q / 2) / eps_50`, Pa.
+    pub e50: f64,
+    /// `(1 - d eps_v / d eps_a) / 2`, the slope fitted (least squares) over the measurements
+    /// up to `eps_50`.
+    pub poisson: f64,
+    /// Peak friction angle, degrees: `sin phi = (s1 - s3) / (s1 + s3)` at the peak.
+    pub friction_angle: f64,
+    /// Dilatancy angle, degrees: `sin psi = -(d eps_v / d eps_a) / (2 - d eps_v / d eps_a)` at
+    /// the largest dilation rate (the slope fitted over `window` measurements either side).
+    pub dilatancy_angle: f64,
+    /// The axial strain of the largest dilation rate.
+    pub dilatancy_strain: f64,
+    pub final_axial_strain: f64,
+    pub final_volumetric_strain: f64,
+    pub measures: usize,
+}
+
+/// Measurements either side of a point over which the dilation rate is fitted.
+pub const DILATANCY_WINDOW: usize = 5;
+
+/// The least-squares slope of `y` against `x`; `None` for fewer than two distinct `x`.
+fn slope(points: &[(f64, f64)]) -> Option<f64> {
+    let n = points.len() as f64;
+    let (mx, my) = points
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
+    let (sxy, sxx) = points.iter().fold((0.0, 0.0), |(a, b), (x, y)| {
+        (a + (x - mx) * (y - my), b + (x - mx) * (x - mx))
+    });
+    (sxx > 0.0).then(|| sxy / sxx)
+}
+
+/// The summary of a test's measurements in loading (in strain order); `None` with fewer than
+/// three or no positive peak.
+pub fn summarize(series: &[Measure]) -> Option<Summary> {
+    if series.len() < 3 {
+        return None;
+    }
+    let peak = series
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.q_boundary.total_cmp(&b.1.q_boundary))?
+        .0;
+    let top = &series[peak];
+    if !(top.q_boundary > 0.0) {
+        return None;
+    }
+    let half = 0.5 * top.q_boundary;
+    let k = series.iter().position(|m| m.q_boundary >= half)?;
+    let eps50 = if k == 0 {
+        series[0].axial_strain
+    } else {
+        let (a, b) = (&series[k - 1], &series[k]);
+        let f = (half - a.q_boundary) / (b.q_boundary - a.q_boundary);
+        a.axial_strain + f * (b.axial_strain - a.axial_strain)
+    };
+    let initial: Vec<(f64, f64)> = (series.iter())
+        .take_while(|m| m.axial_strain <= eps50)
+        .map(|m| (m.axial_strain, m.volumetric_strain))
+        .collect();
+    let initial = if initial.len() >= 3 {
+        initial
+    } else {
+        (series.iter().take(3))
+            .map(|m| (m.axial_strain, m.volumetric_strain))
+            .collect()
+    };
+    let nu = (1.0 - slope(&initial)?) / 2.0;
+    let points: Vec<(f64, f64)> = (series.iter())
+        .map(|m| (m.axial_strain, m.volumetric_strain))
+        .collect();
+    let w = DILATANCY_WINDOW;
+    let (mut rate, mut at) = (f64::INFINITY, 0.0);
+    for i in 0..points.len() {
+        let window = &points[i.saturating_sub(w)..(i + w + 1).min(points.len())];
+        if let Some(s) = slope(window) {
+            if s < rate {
+                (rate, at) = (s, points[i].0);
+            }
+        }
+    }
+    let degrees = |sin: f64| sin.clamp(-1.0, 1.0).asin().to_degrees();
+    let last = series.last()?;
+    Some(Summary {
+        peak_q: top.q_boundary,
+        peak_strain: top.axial_strain,
+        e50: if eps50 > 0.0 { half / eps50 } else { f64::NAN },
+        poisson: nu,
+        friction_angle: degrees((top.sigma1 - top.sigma3) / (top.sigma1 + top.sigma3)),
+        dilatancy_angle: degrees(-rate / (2.0 - rate)),
+        dilatancy_strain: at,
+        final_axial_strain: last.axial_strain,
+        final_volumetric_strain: last.volumetric_strain,
+        measures: series.len(),
+    })
+}
