@@ -33,9 +33,9 @@ pub struct Pin {
     pub wall: u32,
 }
 
-/// The membrane of a facet wall (see the module).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Membrane {
+/// A membrane's material, loads and contacts (SI units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sheet {
     /// Young's modulus, Pa.
     pub young: f64,
     /// Poisson's ratio, in [0, 0.5].
@@ -47,10 +47,79 @@ pub struct Membrane {
     pub pressure: f64,
     /// Mass of each node, kg.
     pub node_mass: f64,
+    /// Normal and shear stiffness of the particles' contacts with the membrane, N/m (a rubber
+    /// sheet is far softer than the particles).
+    pub kn: f64,
+    pub ks: f64,
+    /// Local damping of the nodes (`None`: the material's, as the bodies).
+    pub damping: Option<f64>,
+}
+
+impl Sheet {
+    /// Checks every parameter.
+    pub fn check(&self) -> Result<(), MembraneError> {
+        let checks: [(&'static str, f64, bool, &'static str); 7] = [
+            (
+                "young",
+                self.young,
+                self.young > 0.0,
+                "a positive modulus in Pa",
+            ),
+            (
+                "poisson",
+                self.poisson,
+                (0.0..=0.5).contains(&self.poisson),
+                "a Poisson's ratio in [0, 0.5]",
+            ),
+            (
+                "thickness",
+                self.thickness,
+                self.thickness > 0.0,
+                "a positive thickness in m",
+            ),
+            ("pressure", self.pressure, true, "a finite pressure in Pa"),
+            (
+                "node_mass",
+                self.node_mass,
+                self.node_mass > 0.0,
+                "a positive mass in kg",
+            ),
+            ("kn", self.kn, self.kn > 0.0, "a positive stiffness in N/m"),
+            (
+                "ks",
+                self.ks,
+                self.ks >= 0.0,
+                "a stiffness of 0 or more in N/m",
+            ),
+        ];
+        if let Some(d) = self.damping {
+            if !(0.0..1.0).contains(&d) {
+                return Err(MembraneError::Param {
+                    field: "damping",
+                    rule: "in [0, 1)",
+                    value: d,
+                });
+            }
+        }
+        match (checks.into_iter()).find(|&(_, v, ok, _)| !(ok && v.is_finite())) {
+            Some((field, value, _, rule)) => Err(MembraneError::Param { field, rule, value }),
+            None => Ok(()),
+        }
+    }
+}
+
+/// The membrane of a facet wall (see the module).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Membrane {
+    pub sheet: Sheet,
     /// Nodes held by walls.
     pub pins: Vec<Pin>,
     /// Pinned nodes move with their wall's velocity (true), or only along its normal.
     pub sealed: bool,
+    /// Nodes not pinned are guided: each moves only along its rest position's direction from
+    /// the membrane's axis, and along the axis with the two walls in proportion to its rest
+    /// height between the membrane's ends (see [`Guide`]); `None`: free.
+    pub guide: Option<Guide>,
     /// Node positions of the unstressed membrane, m.
     pub rest: Vec<Vec3>,
     /// Per triangle, the inverse of its rest edge matrix in its own plane, and its rest area.
@@ -59,7 +128,26 @@ pub struct Membrane {
     corners: Vec<Vec<(u32, u8)>>,
     /// Per node, the pinning wall's index, or `u32::MAX`.
     pinned: Vec<u32>,
+    /// Per node, with a guide: its free direction and its height's share between the ends.
+    guides: Vec<(Vec3, f64)>,
 }
+
+/// How a cylindrical membrane's nodes are guided: along the z axis the nodes follow walls
+/// `bottom` and `top` (the platens) in proportion to their rest heights between the rest
+/// shape's lowest and highest node; across it each moves only along its rest direction from
+/// the axis (through the rest nodes' mean in x and y). A guided membrane cannot fold, tangle
+/// or wrap a particle; it bulges and sags into the voids between particles as the pressure and
+/// its tension say.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Guide {
+    pub bottom: u32,
+    pub top: u32,
+}
+
+/// The share of the plane-stress law a wrinkled or slack triangle keeps (its energy is the
+/// relaxed energy plus this share of the difference to the taut law's): enough to keep a
+/// compressed triangle from collapsing, too little to carry a load.
+pub const RESIDUAL: f64 = 0.01;
 
 /// A triangle's rest shape: `dm_inv` maps its edges `(b - a, c - a)`, in a frame of its plane,
 /// to the unit square; `area` its rest area.
@@ -97,54 +185,25 @@ pub enum MembraneError {
     Nodes { rest: usize, nodes: usize },
     #[error("triangle {0} has no area in the rest shape")]
     Flat(usize),
+    #[error("guide: {0}")]
+    Guide(String),
     #[error("pin of node {node} on wall {wall}: {why}")]
     Pin { node: u32, wall: u32, why: String },
 }
 
 impl Membrane {
-    /// A membrane on `triangles` of `rest` nodes (its unstressed shape), with the given
-    /// material and loads; checks every parameter. `walls` is the number of walls a pin may
-    /// name.
-    #[allow(clippy::too_many_arguments)]
+    /// A membrane of `sheet` on `triangles` of `rest` nodes (its unstressed shape); checks
+    /// every parameter. `walls` is the number of walls a pin may name.
     pub fn new(
-        young: f64,
-        poisson: f64,
-        thickness: f64,
-        pressure: f64,
-        node_mass: f64,
+        sheet: Sheet,
         rest: Vec<Vec3>,
         triangles: &[[u32; 3]],
         pins: Vec<Pin>,
         sealed: bool,
+        guide: Option<Guide>,
         walls: usize,
     ) -> Result<Membrane, MembraneError> {
-        let checks: [(&'static str, f64, bool, &'static str); 5] = [
-            ("young", young, young > 0.0, "a positive modulus in Pa"),
-            (
-                "poisson",
-                poisson,
-                (0.0..=0.5).contains(&poisson),
-                "a Poisson's ratio in [0, 0.5]",
-            ),
-            (
-                "thickness",
-                thickness,
-                thickness > 0.0,
-                "a positive thickness in m",
-            ),
-            ("pressure", pressure, true, "a finite pressure in Pa"),
-            (
-                "node_mass",
-                node_mass,
-                node_mass > 0.0,
-                "a positive mass in kg",
-            ),
-        ];
-        if let Some((field, value, _, rule)) =
-            (checks.into_iter()).find(|&(_, v, ok, _)| !(ok && v.is_finite()))
-        {
-            return Err(MembraneError::Param { field, rule, value });
-        }
+        sheet.check()?;
         let mut reference = Vec::with_capacity(triangles.len());
         for (k, t) in triangles.iter().enumerate() {
             let [a, b, c] = t.map(|i| rest[i as usize]);
@@ -192,12 +251,36 @@ impl Membrane {
             }
             *slot = p.wall;
         }
+        let mut guides = Vec::new();
+        if let Some(g) = guide {
+            for (wall, which) in [(g.bottom, "bottom"), (g.top, "top")] {
+                if wall as usize >= walls {
+                    return Err(MembraneError::Guide(format!(
+                        "the {which} wall {wall} does not exist"
+                    )));
+                }
+            }
+            let (lo, hi) = rest
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                    (a.min(x.z), b.max(x.z))
+                });
+            let centre = rest.iter().sum::<Vec3>() / rest.len().max(1) as f64;
+            for (i, x) in rest.iter().enumerate() {
+                let out = Vec3::new(x.x - centre.x, x.y - centre.y, 0.0);
+                let len = out.norm();
+                if pinned[i] == u32::MAX && !(len > 0.0 && hi > lo) {
+                    return Err(MembraneError::Guide(format!("node {i} is on the axis")));
+                }
+                let dir = if len > 0.0 { out / len } else { Vec3::zeros() };
+                let frac = if hi > lo { (x.z - lo) / (hi - lo) } else { 0.0 };
+                guides.push((dir, frac));
+            }
+        }
         Ok(Membrane {
-            young,
-            poisson,
-            thickness,
-            pressure,
-            node_mass,
+            sheet,
+            guide,
+            guides,
             pins,
             sealed,
             rest,
@@ -210,15 +293,20 @@ impl Membrane {
     /// The plane-stress stiffness times the thickness: `(d11, d12, d33)` of
     /// `t E / (1 - nu^2) [[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu) / 2]]`.
     fn stiffness(&self) -> (f64, f64, f64) {
-        let d = self.thickness * self.young / (1.0 - self.poisson * self.poisson);
-        (d, d * self.poisson, d * 0.5 * (1.0 - self.poisson))
+        let d = self.sheet.thickness * self.sheet.young
+            / (1.0 - self.sheet.poisson * self.sheet.poisson);
+        (
+            d,
+            d * self.sheet.poisson,
+            d * 0.5 * (1.0 - self.sheet.poisson),
+        )
     }
 
     /// A bound on the stiffness of the membrane at any node, N/m: the largest eigenvalue of a
     /// constant-strain triangle's stiffness is at most `t A |D| sum_i |grad N_i|^2`
     /// (`|D| = E / (1 - nu)` for plane stress), summed over the node's triangles.
     pub fn node_stiffness(&self, triangles: &[[u32; 3]]) -> f64 {
-        let norm_d = self.thickness * self.young / (1.0 - self.poisson);
+        let norm_d = self.sheet.thickness * self.sheet.young / (1.0 - self.sheet.poisson);
         let per_triangle: Vec<f64> = (triangles.iter().zip(&self.reference))
             .map(|(t, r)| {
                 let [a, b, c] = t.map(|i| self.rest[i as usize]);
@@ -236,10 +324,11 @@ impl Membrane {
             .fold(0.0, f64::max)
     }
 
-    /// The critical time step of the nodes against contacts of stiffness `kn` on top of the
-    /// membrane's own: `sqrt(m / (kn + k_membrane))`.
-    pub fn critical_dt(&self, triangles: &[[u32; 3]], kn: f64) -> f64 {
-        (self.node_mass / (kn + self.node_stiffness(triangles))).sqrt()
+    /// The critical time step of the nodes against their contacts' stiffness on top of the
+    /// membrane's own: `sqrt(m / (max(kn, ks) + k_membrane))`.
+    pub fn critical_dt(&self, triangles: &[[u32; 3]]) -> f64 {
+        let k = self.sheet.kn.max(self.sheet.ks);
+        (self.sheet.node_mass / (k + self.node_stiffness(triangles))).sqrt()
     }
 
     /// The pinning wall of node `i`, if any.
@@ -253,6 +342,57 @@ impl Membrane {
         (triangles.iter().zip(&self.reference))
             .map(|(t, r)| self.triangle(t.map(|i| nodes[i as usize]), r).1)
             .sum()
+    }
+
+    /// The second Piola-Kirchhoff stress times the thickness, `(S11, S22, S12)`, of the Green
+    /// strain `(E11, E22, E12)`, for a sheet that carries no compression (it wrinkles): taut,
+    /// the plane-stress law `S = D E`; wrinkled (the law's minor principal stress would be
+    /// negative while the major strain stretches), a uniaxial tension `t Y e1` along the major
+    /// strain's direction; slack (no stretch), none. The energy `E : S / 2` is the relaxed
+    /// energy of tension-field theory, continuous with its gradient across the states.
+    #[inline]
+    fn relaxed_stress(&self, e11: f64, e22: f64, e12: f64) -> (f64, f64, f64) {
+        let (d11, d12, d33) = self.stiffness();
+        let taut = (
+            d11 * e11 + d12 * e22,
+            d12 * e11 + d11 * e22,
+            d33 * 2.0 * e12,
+        );
+        // Principal strains and the major direction.
+        let mean = 0.5 * (e11 + e22);
+        let radius = (0.25 * (e11 - e22) * (e11 - e22) + e12 * e12).sqrt();
+        let (major, minor) = (mean + radius, mean - radius);
+        let nu = self.sheet.poisson;
+        if minor + nu * major >= 0.0 {
+            return taut;
+        }
+        // Wrinkled or slack: the relaxed stress, with a residual share of the taut law's
+        // that keeps compressed triangles from collapsing.
+        let k = RESIDUAL;
+        let keep = |s: (f64, f64, f64)| {
+            (
+                s.0 + k * (taut.0 - s.0),
+                s.1 + k * (taut.1 - s.1),
+                s.2 + k * (taut.2 - s.2),
+            )
+        };
+        if major <= 0.0 {
+            return keep((0.0, 0.0, 0.0));
+        }
+        // The major direction (c, s): an eigenvector of the strain.
+        let (c, s) = if radius > 0.0 {
+            let (x, y) = if e11 >= e22 {
+                (major - e22, e12)
+            } else {
+                (e12, major - e11)
+            };
+            let n = (x * x + y * y).sqrt();
+            (x / n, y / n)
+        } else {
+            (1.0, 0.0)
+        };
+        let tension = self.sheet.thickness * self.sheet.young * major;
+        keep((tension * c * c, tension * s * s, tension * c * s))
     }
 
     /// A triangle's elastic forces on its corners and its elastic energy, at corners `x`.
@@ -269,13 +409,7 @@ impl Membrane {
             0.5 * (f2.dot(&f2) - 1.0),
             0.5 * f1.dot(&f2),
         );
-        let (d11, d12, d33) = self.stiffness();
-        // Second Piola-Kirchhoff stress times the thickness (plane stress, engineering shear).
-        let (s11, s22, s12) = (
-            d11 * e11 + d12 * e22,
-            d12 * e11 + d11 * e22,
-            d33 * 2.0 * e12,
-        );
+        let (s11, s22, s12) = self.relaxed_stress(e11, e22, e12);
         let energy = 0.5 * r.area * (s11 * e11 + s22 * e22 + 2.0 * s12 * e12);
         // First Piola-Kirchhoff P = F S, by columns; forces H = -A P Dm^-T on corners b, c.
         let p1 = f1 * s11 + f2 * s12;
@@ -299,7 +433,7 @@ impl Membrane {
             let (f, energy) = self.triangle(x, r);
             // The pressure on the triangle as it is now, a third to each corner.
             let area = (x[1] - x[0]).cross(&(x[2] - x[0])) * 0.5;
-            (f, area * (self.pressure / 3.0), energy)
+            (f, area * (self.sheet.pressure / 3.0), energy)
         };
         let items = triangles.iter().zip(&self.reference);
         let done: Vec<([Vec3; 3], Vec3, f64)> = if par {
@@ -331,66 +465,111 @@ impl Membrane {
     }
 }
 
-/// What a pinned node needs of its wall: the wall's velocity and, for a plane, its normal.
-#[derive(Clone, Copy)]
-struct Holder {
-    velocity: Vec3,
-    normal: Option<Vec3>,
+/// The motion a node is free to take.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Space {
+    /// Any (a free node).
+    All,
+    /// None (sealed to its wall).
+    Nothing,
+    /// The plane normal to this unit vector (sliding on a platen).
+    Plane(Vec3),
+    /// The line along this unit vector (a guided node).
+    Line(Vec3),
 }
 
-impl Holder {
-    fn of(w: &Wall) -> Holder {
-        let normal = match &w.kind {
-            WallKind::Plane { normal, .. } => Some(*normal),
-            _ => None,
+impl Space {
+    /// The part of `v` in the space.
+    fn project(&self, v: &Vec3) -> Vec3 {
+        match self {
+            Space::All => *v,
+            Space::Nothing => Vec3::zeros(),
+            Space::Plane(n) => v - n * n.dot(v),
+            Space::Line(d) => d * d.dot(v),
+        }
+    }
+
+    /// PFC's local damping of force `f` against the free velocity `v`: per world component for
+    /// a free node, along the line for a guided one.
+    fn damping(&self, f: &Vec3, v: &Vec3, alpha: f64) -> Vec3 {
+        match self {
+            Space::Line(d) => {
+                let vd = d.dot(v);
+                if vd == 0.0 {
+                    Vec3::zeros()
+                } else {
+                    d * (-alpha * d.dot(f).abs() * vd.signum())
+                }
+            }
+            _ => Vec3::from_fn(|j, _| {
+                if v[j] == 0.0 {
+                    0.0
+                } else {
+                    -alpha * f[j].abs() * v[j].signum()
+                }
+            }),
+        }
+    }
+}
+
+/// Node `i`'s free space and the velocity imposed on the rest of its motion, from the walls'
+/// velocities now.
+fn constraint(m: &Membrane, walls: &[Wall], i: usize) -> (Space, Vec3) {
+    if let Some(w) = m.pin_of(i) {
+        let wall = &walls[w as usize];
+        return match (&wall.kind, m.sealed) {
+            (WallKind::Plane { normal, .. }, false) => {
+                (Space::Plane(*normal), normal * normal.dot(&wall.velocity))
+            }
+            _ => (Space::Nothing, wall.velocity),
         };
-        Holder {
-            velocity: w.velocity,
-            normal,
+    }
+    match (&m.guide, m.guides.get(i)) {
+        (Some(g), Some(&(dir, frac))) => {
+            let (vb, vt) = (
+                walls[g.bottom as usize].velocity,
+                walls[g.top as usize].velocity,
+            );
+            (Space::Line(dir), vb + (vt - vb) * frac)
         }
+        _ => (Space::All, Vec3::zeros()),
     }
 }
 
-/// The part of `v` (a velocity or a force) on a node's free motion, and the velocity its wall
-/// imposes: a free node (`None`) keeps all; a sealed node none, and takes its wall's velocity;
-/// a node sliding on a plane keeps the part in the plane and takes the plane's normal motion.
-fn split(v: &Vec3, pin: Option<&Holder>, sealed: bool) -> (Vec3, Vec3) {
-    match (pin, sealed) {
-        (None, _) => (*v, Vec3::zeros()),
-        (Some(h), false) if h.normal.is_some() => {
-            let n = h.normal.unwrap_or_default();
-            (v - n * n.dot(v), n * n.dot(&h.velocity))
-        }
-        (Some(h), _) => (Vec3::zeros(), h.velocity),
-    }
+/// The kinetic energy of the free motion of the membrane of a facet wall with these node
+/// velocities, the walls as they are.
+pub fn kinetic_energy(m: &Membrane, node_velocities: &[Vec3], walls: &[Wall]) -> f64 {
+    (node_velocities.iter().enumerate())
+        .map(|(i, v)| 0.5 * m.sheet.node_mass * constraint(m, walls, i).0.project(v).norm_squared())
+        .sum()
 }
 
-/// The holders of `walls`, by wall index (`None` for a wall that pins nothing of `m`).
-fn holders(walls: &[Wall], m: &Membrane) -> Vec<Option<Holder>> {
-    let mut out = vec![None; walls.len()];
-    for p in &m.pins {
-        out[p.wall as usize] = Some(Holder::of(&walls[p.wall as usize]));
-    }
-    out
-}
-
-/// Sets the velocity of every pinned node of the membranes among `walls` from its wall's, as
-/// the step is about to move them: sealed nodes take the wall's velocity, sliding ones its
-/// normal part and keep their own in its plane.
+/// Sets the velocity of every held node (pinned or guided) of the membranes among `walls` from
+/// its walls', as the step is about to move them: each keeps its free part and takes the
+/// imposed one.
 pub fn pin_velocities(walls: &mut [Wall]) {
     for k in 0..walls.len() {
         let Some(m) = walls[k].membrane.take() else {
             continue;
         };
-        let held = holders(walls, &m);
+        let n = match &walls[k].kind {
+            WallKind::Facets { nodes, .. } => nodes.len(),
+            _ => 0,
+        };
+        let held: Vec<(usize, Space, Vec3)> = (0..n)
+            .filter(|&i| m.pin_of(i).is_some() || m.guide.is_some())
+            .map(|i| {
+                let (space, imposed) = constraint(&m, walls, i);
+                (i, space, imposed)
+            })
+            .collect();
         if let WallKind::Facets {
             node_velocities, ..
         } = &mut walls[k].kind
         {
-            for p in &m.pins {
-                let v = &mut node_velocities[p.node as usize];
-                let (free, imposed) = split(v, held[p.wall as usize].as_ref(), m.sealed);
-                *v = free + imposed;
+            for (i, space, imposed) in held {
+                let v = &mut node_velocities[i];
+                *v = space.project(v) + imposed;
             }
         }
         walls[k].membrane = Some(m);
@@ -399,13 +578,18 @@ pub fn pin_velocities(walls: &mut [Wall]) {
 
 /// Moves the nodes of wall `k`'s membrane on by one step `dt` after this step's contacts (its
 /// `node_forces`): elastic and pressure forces at the nodes as they are, local damping
-/// `alpha`, and the kick to the velocities of the next step. Returns the energy terms.
+/// (the sheet's, or else `alpha`), and the kick to the velocities of the next step. Returns the energy terms.
 pub fn kick(walls: &mut [Wall], k: usize, dt: f64, alpha: f64, par: bool) -> MembraneEnergy {
     let Some(m) = walls[k].membrane.take() else {
         return MembraneEnergy::default();
     };
-    let held = holders(walls, &m);
+    let alpha = m.sheet.damping.unwrap_or(alpha);
     let mut out = MembraneEnergy::default();
+    let n = match &walls[k].kind {
+        WallKind::Facets { nodes, .. } => nodes.len(),
+        _ => 0,
+    };
+    let constraints: Vec<(Space, Vec3)> = (0..n).map(|i| constraint(&m, walls, i)).collect();
     if let WallKind::Facets {
         nodes,
         triangles,
@@ -415,31 +599,20 @@ pub fn kick(walls: &mut [Wall], k: usize, dt: f64, alpha: f64, par: bool) -> Mem
     {
         let (elastic, pressure, energy) = m.forces(nodes, triangles, par);
         out.elastic = energy;
-        for i in 0..nodes.len() {
-            let pin = m.pin_of(i).and_then(|w| held[w as usize].as_ref());
-            let v_old = node_velocities[i];
-            let (free_old, imposed) = split(&v_old, pin, m.sealed);
+        for (i, (space, imposed)) in constraints.iter().enumerate() {
+            let free_old = space.project(&node_velocities[i]);
             let internal = elastic[i] + node_forces[i];
-            let total = internal + pressure[i];
             // The force on the free motion, damped as a body's is.
-            let (free_force, _) = split(&total, pin, m.sealed);
-            let damp = Vec3::from_fn(|j, _| {
-                if free_old[j] == 0.0 {
-                    0.0
-                } else {
-                    -alpha * free_force[j].abs() * free_old[j].signum()
-                }
-            });
-            let force = free_force + damp;
-            let free_new = free_old + force * (dt / m.node_mass);
-            let (free_new, _) = split(&free_new, pin, m.sealed);
+            let free_force = space.project(&(internal + pressure[i]));
+            let damp = space.damping(&free_force, &free_old, alpha);
+            let free_new = free_old + (free_force + damp) * (dt / m.sheet.node_mass);
             let mean = (free_old + free_new) * 0.5;
             out.pressure_work += pressure[i].dot(&mean) * dt;
             out.damping -= damp.dot(&mean) * dt;
-            out.kinetic += 0.5 * m.node_mass * free_new.norm_squared();
-            // The pinning wall holds the node on its path against everything but the pressure
-            // (which acts on the wall through it).
-            out.wall_work -= internal.dot(&imposed) * dt;
+            out.kinetic += 0.5 * m.sheet.node_mass * free_new.norm_squared();
+            // The holding walls keep the node on its path against everything but the pressure
+            // (which acts on them through it).
+            out.wall_work -= internal.dot(imposed) * dt;
             node_velocities[i] = free_new + imposed;
         }
     }
@@ -450,6 +623,19 @@ pub fn kick(walls: &mut [Wall], k: usize, dt: f64, alpha: f64, par: bool) -> Mem
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn sheet(young: f64, poisson: f64, thickness: f64, pressure: f64) -> Sheet {
+        Sheet {
+            young,
+            poisson,
+            thickness,
+            pressure,
+            node_mass: 1.0,
+            kn: 1e6,
+            ks: 5e5,
+            damping: None,
+        }
+    }
 
     fn patch() -> (Vec<Vec3>, Vec<[u32; 3]>) {
         // Two triangles of a unit square in the plane z = 0.3, seen from +z.
@@ -472,15 +658,12 @@ mod tests {
         let (rest, triangles) = patch();
         let (young, nu, t) = (7.8e6, 0.5, 2e-3);
         let m = Membrane::new(
-            young,
-            nu,
-            t,
-            0.0,
-            1.0,
+            sheet(young, nu, t, 0.0),
             rest.clone(),
             &triangles,
             vec![],
             true,
+            None,
             0,
         )
         .unwrap();
@@ -493,16 +676,16 @@ mod tests {
         let (e1, e2) = (0.5 * (l1 * l1 - 1.0), 0.5 * (l2 * l2 - 1.0));
         let d = young / (1.0 - nu * nu);
         let (s1, s2) = (d * (e1 + nu * e2), d * (nu * e1 + e2));
-        // The nodes at x = 1 (1 and 2) carry the traction l1 S11 t over the unit rest edge,
-        // along the stretched x axis; the forces balance.
+        // The nodes at x = 1 (1 and 2) are pulled back by the traction l1 S11 t over the unit
+        // rest edge, along the stretched x axis; the forces balance.
         let edge = f[1] + f[2];
-        let expected = turn * Vec3::new(l1 * s1 * t, 0.0, 0.0);
+        let expected = turn * Vec3::new(-l1 * s1 * t, 0.0, 0.0);
         assert!(
             (edge - expected).norm() < 1e-9 * expected.norm(),
             "{edge:?} {expected:?}"
         );
         let top = f[2] + f[3];
-        let expected = turn * Vec3::new(0.0, l2 * s2 * t, 0.0);
+        let expected = turn * Vec3::new(0.0, -l2 * s2 * t, 0.0);
         assert!(
             (top - expected).norm() < 1e-9 * expected.norm(),
             "{top:?} {expected:?}"
@@ -523,21 +706,73 @@ mod tests {
         assert!(energy.abs() < 1e-18);
     }
 
+    /// A sheet carries no compression but its residual share: stretched along x and squeezed
+    /// along y past the plane-stress law's zero (`E22 < -nu E11`) it carries the uniaxial
+    /// tension `t Y E11` along x (plus `RESIDUAL` of the taut law's difference); squeezed both
+    /// ways, only the residual share.
+    #[test]
+    fn a_wrinkled_sheet_carries_uniaxial_tension_and_a_slack_one_next_to_nothing() {
+        let (rest, triangles) = patch();
+        let (young, nu, t) = (7.8e6, 0.5, 2e-3);
+        let m = Membrane::new(
+            sheet(young, nu, t, 0.0),
+            rest.clone(),
+            &triangles,
+            vec![],
+            true,
+            None,
+            0,
+        )
+        .unwrap();
+        let stretched = |l1: f64, l2: f64| -> Vec<Vec3> {
+            rest.iter()
+                .map(|p| Vec3::new(p.x * l1, p.y * l2, 0.3))
+                .collect()
+        };
+        let taut = |e1: f64, e2: f64| {
+            let d = t * young / (1.0 - nu * nu);
+            (d * (e1 + nu * e2), d * (nu * e1 + e2))
+        };
+        let k = RESIDUAL;
+        for (l1, l2) in [(1.05, 0.9), (0.95, 0.9)] {
+            let (e1, e2) = (0.5 * (l1 * l1 - 1.0), 0.5 * (l2 * l2 - 1.0));
+            let (t1, t2) = taut(e1, e2);
+            let relaxed = if e1 > 0.0 { young * t * e1 } else { 0.0 };
+            let (s1, s2) = (relaxed + k * (t1 - relaxed), k * t2);
+            let (f, _, energy) = m.forces(&stretched(l1, l2), &triangles, false);
+            let edge = f[1] + f[2];
+            let expected = Vec3::new(-l1 * s1, 0.0, 0.0);
+            assert!(
+                (edge - expected).norm() < 1e-9 * expected.norm(),
+                "{edge:?} {expected:?}"
+            );
+            let top = f[2] + f[3];
+            assert!((top.y + l2 * s2).abs() < 1e-9 * expected.norm(), "{top:?}");
+            let want = 0.5 * (s1 * e1 + s2 * e2);
+            assert!(
+                (energy - want).abs() < 1e-12 * want.abs(),
+                "{energy} {want}"
+            );
+            // Turned in its plane, the same energy.
+            let turn = nalgebra::UnitQuaternion::from_axis_angle(&Vec3::z_axis(), 0.5);
+            let x: Vec<Vec3> = stretched(l1, l2).iter().map(|p| turn * p).collect();
+            let (_, _, e) = m.forces(&x, &triangles, false);
+            assert!((e - energy).abs() < 1e-9 * energy.abs());
+        }
+    }
+
     /// The elastic forces are minus the gradient of the elastic energy (central differences),
     /// and the pressure is `p` times each triangle's area vector, a third to each corner.
     #[test]
     fn elastic_forces_are_the_energy_gradient_and_pressure_follows_the_facets() {
         let (rest, triangles) = patch();
         let m = Membrane::new(
-            7.8e6,
-            0.45,
-            2e-3,
-            1e5,
-            1.0,
+            sheet(7.8e6, 0.45, 2e-3, 1e5),
             rest.clone(),
             &triangles,
             vec![],
             true,
+            None,
             0,
         )
         .unwrap();
@@ -581,15 +816,12 @@ mod tests {
         let (rest, triangles) = patch();
         let make = |young: f64, nu: f64, pins: Vec<Pin>| {
             Membrane::new(
-                young,
-                nu,
-                2e-3,
-                1e5,
-                1.0,
+                sheet(young, nu, 2e-3, 1e5),
                 rest.clone(),
                 &triangles,
                 pins,
                 true,
+                None,
                 2,
             )
         };
@@ -611,7 +843,15 @@ mod tests {
         let mut flat = rest.clone();
         flat[2] = flat[0];
         assert!(matches!(
-            Membrane::new(1e6, 0.3, 2e-3, 0.0, 1.0, flat, &triangles, vec![], true, 0),
+            Membrane::new(
+                sheet(1e6, 0.3, 2e-3, 0.0),
+                flat,
+                &triangles,
+                vec![],
+                true,
+                None,
+                0
+            ),
             Err(MembraneError::Flat(0))
         ));
     }

@@ -127,6 +127,17 @@ fn spots(spots: &[Spot]) -> (Overlap, Vec3, Vec3) {
         .map(|g| (g.overlap.centroid - point).cross(&(g.normal() * g.overlap.depth())))
         .sum();
     let volume: f64 = spots.iter().map(|g| g.overlap.volume).sum();
+    // Spots pushing against each other (a body pinched in a fold of a membrane) may cancel:
+    // their sum keeps a floor of 1e-12 of their depths, along the deepest spot's normal.
+    let deepest = (spots.iter())
+        .max_by(|a, b| a.overlap.depth().total_cmp(&b.overlap.depth()))
+        .map_or(Vec3::z(), Spot::normal);
+    let floor = 1e-12 * total;
+    let depth = if depth.norm() > floor {
+        depth
+    } else {
+        deepest * floor
+    };
     let length = depth.norm();
     let normal = depth / length;
     let overlap = Overlap {
@@ -249,7 +260,15 @@ impl Wall {
                     if misses(&(lo - reach), &(hi + reach)) {
                         continue;
                     }
-                    let n = (q[1] - q[0]).cross(&(q[2] - q[0])).normalize();
+                    // A triangle of a deformed membrane folded flat has no plane: skipped.
+                    let n = (q[1] - q[0]).cross(&(q[2] - q[0]));
+                    let scale = (q[1] - q[0])
+                        .norm_squared()
+                        .max((q[2] - q[0]).norm_squared());
+                    if !(n.norm() > 1e-12 * scale) {
+                        continue;
+                    }
+                    let n = n.normalize();
                     let back = -n * (2.0 * radius);
                     if misses(&lo.inf(&(lo + back)), &hi.sup(&(hi + back))) {
                         continue;
@@ -258,6 +277,16 @@ impl Wall {
                     // (the prism is as deep as B is wide: a body that meets the plane reaches
                     // no deeper).
                     let sides = side_planes(&q, &n);
+                    // Quick reject: the body wholly beyond one of the prism's side planes (its
+                    // vertices, or for a large hull its box), so that every face's clipping
+                    // would come out empty.
+                    let beyond = |(m, e): &(Vec3, f64)| match s.climb {
+                        None => (0..s.vertices.len()).all(|i| m.dot(&b.vertex(s, i)) > *e),
+                        Some(_) => box_excess(&-m, -e, &b.lo, &b.hi) < 0.0,
+                    };
+                    if sides.iter().any(beyond) {
+                        continue;
+                    }
                     if let Some((v, c, cap)) = overlap_behind_facet(s, b, &n, n.dot(&q[0]), &sides)
                     {
                         pieces.push((*t, q, v, c, cap));
@@ -266,7 +295,14 @@ impl Wall {
                 // Spots: pieces on triangles that share a node, and so on; each spot's pieces
                 // summed in piece order (`labels[k]`: the label of `list[k]`'s pieces).
                 let triangles: Vec<[u32; 3]> = pieces.iter().map(|p| p.0).collect();
-                let label = connected(&triangles);
+                // A membrane's pieces make one spot: its nodes then take the contact's force as
+                // the body does (a spot of its own for each would push its nodes with forces
+                // the body does not feel).
+                let label = if self.membrane.is_some() {
+                    vec![0; triangles.len()]
+                } else {
+                    connected(&triangles)
+                };
                 let mut sums: Vec<(usize, Sum)> = Vec::new();
                 for (piece, &l) in pieces.iter().zip(&label) {
                     if !sums.iter().any(|g| g.0 == l) {

@@ -22,7 +22,7 @@
 //! ([`node_mass`]).
 
 use crate::dem::contacts::{Contacts, Partner};
-use crate::dem::membrane::{Membrane, Pin};
+use crate::dem::membrane::{Guide, Membrane, Pin, Sheet};
 use crate::dem::parallel::on_pool;
 use crate::dem::wall::{Wall, WallKind};
 use crate::dem::world::World;
@@ -30,7 +30,7 @@ use crate::geometry::mass::equivalent_diameter;
 use crate::lab::boundary::{container, Section, WallGeometry, BOTTOM, SIDE, TOP};
 use crate::lab::inertia::scale_inertia;
 use crate::lab::servo::{servo, set_speeds, ServoLaw};
-use crate::math::Vec3;
+use crate::math::{basis, Vec3};
 use crate::micro::stress::{contact_stress, coordination, invariants};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -52,6 +52,10 @@ pub struct Params {
     pub thickness: f64,
     /// The membrane's largest facet edge, m (`None`: the smallest particle's size).
     pub edge: Option<f64>,
+    /// Normal stiffness of the particles' contacts with the membrane, N/m (shear: half).
+    pub membrane_kn: f64,
+    /// Local damping of the membrane's nodes.
+    pub membrane_damping: f64,
     /// Axial strain between measurements, and between frames.
     pub every: f64,
     pub frame_every: f64,
@@ -80,6 +84,8 @@ impl Default for Params {
             poisson: 0.5,
             thickness: 2e-3,
             edge: None,
+            membrane_kn: 1e6,
+            membrane_damping: 0.7,
             every: 1e-3,
             frame_every: 5e-3,
             inertia_scaling: true,
@@ -131,6 +137,7 @@ impl Params {
             ("rate", self.rate),
             ("young", self.young),
             ("thickness", self.thickness),
+            ("membrane_kn", self.membrane_kn),
             ("every", self.every),
             ("frame_every", self.frame_every),
             ("tolerance", self.tolerance),
@@ -150,6 +157,12 @@ impl Params {
             return bad(
                 "final_strain",
                 format!("must be in (0, 1), got {}", self.final_strain),
+            );
+        }
+        if !(0.0..1.0).contains(&self.membrane_damping) {
+            return bad(
+                "membrane_damping",
+                format!("must be in [0, 1), got {}", self.membrane_damping),
             );
         }
         if !(0.0..=0.5).contains(&self.poisson) {
@@ -173,22 +186,23 @@ impl Params {
 /// The membrane of the test: the facet wall's index among the walls.
 pub const MEMBRANE: usize = SIDE;
 
-/// Nodes and triangles of a cylinder of facets about the z axis from `bottom` to `top`, its
-/// chords at distance `apothem` from the axis, no edge longer than about `edge`: rings of
-/// `segments` nodes, every other ring turned by half a segment (near-equilateral triangles),
-/// the triangles counter-clockwise seen from the axis. Returns the bottom and top rings' nodes
-/// too.
+/// Nodes and triangles of a cylindrical membrane about the axis through `point` along `axis`:
+/// `segments` nodes on a circle of `radius` (at a cylinder wall's corner angles: the first at
+/// the angle of its first corner) on each of `rings + 1` rings from `bottom` to `top`, each
+/// quad between two rings cut into two triangles, counter-clockwise seen from the axis.
+/// Returns the bottom and top rings' nodes too.
 pub fn cylinder_membrane(
-    apothem: f64,
+    point: &Vec3,
+    axis: &Vec3,
+    radius: f64,
+    segments: usize,
     bottom: f64,
     top: f64,
-    edge: f64,
+    rings: usize,
 ) -> (Vec<Vec3>, Vec<[u32; 3]>, Vec<u32>, Vec<u32>) {
-    let segments = ((2.0 * PI * apothem / edge).ceil() as usize).max(12);
+    let (e1, e2) = basis(axis);
     let step = 2.0 * PI / segments as f64;
-    let radius = apothem / (0.5 * step).cos();
     let height = top - bottom;
-    let rings = ((height / (edge * 3f64.sqrt() / 2.0)).ceil() as usize).max(2);
     let mut nodes = Vec::with_capacity((rings + 1) * segments);
     for k in 0..=rings {
         let z = if k == rings {
@@ -196,34 +210,27 @@ pub fn cylinder_membrane(
         } else {
             bottom + height * k as f64 / rings as f64
         };
-        let turn = if k % 2 == 1 { 0.5 } else { 0.0 };
         for j in 0..segments {
-            let a = step * (j as f64 + turn);
-            nodes.push(Vec3::new(radius * a.cos(), radius * a.sin(), z));
+            // The cylinder's corner j (see `WallKind::Cylinder`), at this height.
+            let a = j as f64 * step;
+            let c = point + (e1 * a.cos() + e2 * a.sin()) * radius;
+            nodes.push(Vec3::new(c.x, c.y, z));
         }
     }
     let id = |k: usize, j: usize| (k * segments + j % segments) as u32;
     let mut triangles = Vec::with_capacity(2 * rings * segments);
     for k in 0..rings {
         for j in 0..segments {
-            let tris = if k % 2 == 0 {
-                // Ring k+1 is turned by half a segment: its node j sits between k's j and j+1.
-                [
-                    [id(k, j), id(k, j + 1), id(k + 1, j)],
-                    [id(k, j + 1), id(k + 1, j + 1), id(k + 1, j)],
-                ]
-            } else {
-                [
-                    [id(k, j), id(k + 1, j + 1), id(k + 1, j)],
-                    [id(k, j), id(k, j + 1), id(k + 1, j + 1)],
-                ]
-            };
-            for mut t in tris {
+            for mut t in [
+                [id(k, j), id(k, j + 1), id(k + 1, j + 1)],
+                [id(k, j), id(k + 1, j + 1), id(k + 1, j)],
+            ] {
                 // Counter-clockwise seen from the axis: the normal points inwards.
                 let [a, b, c] = t.map(|i| nodes[i as usize]);
                 let n = (b - a).cross(&(c - a));
-                let mid = (a + b + c) / 3.0;
-                if n.dot(&Vec3::new(mid.x, mid.y, 0.0)) > 0.0 {
+                let mid = (a + b + c) / 3.0 - point;
+                let out = mid - axis * axis.dot(&mid);
+                if n.dot(&out) > 0.0 {
                     t.swap(1, 2);
                 }
                 triangles.push(t);
@@ -337,6 +344,9 @@ impl Triax {
         let Section::Circle { radius, .. } = bounds.section else {
             return Err(TriaxError::NotCylinder("a box".into()));
         };
+        let WallKind::Cylinder { point, axis, .. } = world.walls[SIDE].kind else {
+            return Err(TriaxError::NotCylinder("wall 2 is not a cylinder".into()));
+        };
         if world.bodies.is_empty() {
             return Err(TriaxError::NotCylinder("no particles".into()));
         }
@@ -344,9 +354,23 @@ impl Triax {
             .map(|b| equivalent_diameter(world.shapes[b.shape as usize].volume) * b.scale)
             .collect();
         let smallest = sizes.iter().copied().fold(f64::INFINITY, f64::min);
+        // Chords no longer than the edge, all outside the cylinder (the nodes on the circle
+        // through which the chords pass at the cylinder's radius: no particle overlaps the
+        // membrane; the pressure closes the gap, at most `radius (1/cos(pi/n) - cos(pi/s))`);
+        // rings at about the edge's spacing.
         let edge = params.edge.unwrap_or(smallest);
-        let (nodes, triangles, bottom, top) =
-            cylinder_membrane(radius, bounds.bottom, bounds.top, edge);
+        let n = ((2.0 * PI * radius / edge).ceil() as usize).max(12);
+        let node_radius = radius / (PI / n as f64).cos();
+        let rings = ((bounds.top - bounds.bottom) / edge).ceil().max(2.0) as usize;
+        let (nodes, triangles, bottom, top) = cylinder_membrane(
+            &point,
+            &axis,
+            node_radius,
+            n,
+            bounds.bottom,
+            bounds.top,
+            rings,
+        );
         let pins = (bottom.iter().map(|&node| Pin {
             node,
             wall: BOTTOM as u32,
@@ -362,16 +386,26 @@ impl Triax {
             .map(|(k, c)| (*k, c.clone()))
             .collect();
         world.contacts = Contacts::from_sorted(&kept, false, |x| x.0, |x| x.1.clone());
+        let sheet = Sheet {
+            young: params.young,
+            poisson: params.poisson,
+            thickness: params.thickness,
+            pressure: params.pressure,
+            node_mass: 1.0,
+            kn: params.membrane_kn,
+            ks: 0.5 * params.membrane_kn,
+            damping: Some(params.membrane_damping),
+        };
         let mut membrane = Membrane::new(
-            params.young,
-            params.poisson,
-            params.thickness,
-            params.pressure,
-            1.0,
+            sheet,
             nodes.clone(),
             &triangles,
             pins,
             true,
+            Some(Guide {
+                bottom: BOTTOM as u32,
+                top: TOP as u32,
+            }),
             world.walls.len(),
         )
         .map_err(|e| TriaxError::Membrane(e.to_string()))?;
@@ -381,8 +415,11 @@ impl Triax {
         let bodies_dt = (world.critical_dts().iter())
             .map(|&(t, r)| t.min(r))
             .fold(f64::INFINITY, f64::min);
-        let kn = world.material.kn.max(world.material.ks);
-        membrane.node_mass = node_mass(kn, membrane.node_stiffness(&triangles), bodies_dt);
+        membrane.sheet.node_mass = node_mass(
+            sheet.kn.max(sheet.ks),
+            membrane.node_stiffness(&triangles),
+            bodies_dt,
+        );
         let mut wall = Wall::facets(nodes, triangles);
         wall.membrane = Some(Box::new(membrane));
         world.walls[MEMBRANE] = wall;

@@ -12,7 +12,7 @@
 use crate::dem::contacts::Partner;
 use crate::dem::energy::Energy;
 use crate::dem::law::{Contact, Material};
-use crate::dem::membrane::{Membrane, Pin};
+use crate::dem::membrane::{Guide, Membrane, Pin, Sheet};
 use crate::dem::shape::Shape;
 use crate::dem::wall::{Wall, WallKind};
 use crate::dem::world::{Body, World};
@@ -182,7 +182,8 @@ pub struct WallRecord {
 }
 
 /// A facet wall's membrane ([`Membrane`]): its material (`young` Pa, `poisson`, `thickness` m),
-/// the `pressure` on its outer side (Pa), the mass of each node (kg), its pinned nodes
+/// the `pressure` on its outer side (Pa), the mass of each node (kg), the stiffness of the
+/// particles' contacts with it (`kn`, `ks`, N/m), its pinned nodes
 /// (`[node, wall]`) and whether they are `sealed` to their walls or slide on them, and the
 /// nodes' `rest` positions (the unstressed membrane).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -193,21 +194,34 @@ pub struct MembraneRecord {
     pub thickness: f64,
     pub pressure: f64,
     pub node_mass: f64,
+    pub kn: f64,
+    pub ks: f64,
+    /// The nodes' local damping, when not the material's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping: Option<f64>,
     pub sealed: bool,
     pub pins: Vec<[u32; 2]>,
+    /// The walls that guide the nodes not pinned (`[bottom, top]`), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub guide: Option<[u32; 2]>,
     pub rest: Vec<[f64; 3]>,
 }
 
 impl MembraneRecord {
     fn of(m: &Membrane) -> MembraneRecord {
+        let s = &m.sheet;
         MembraneRecord {
-            young: m.young,
-            poisson: m.poisson,
-            thickness: m.thickness,
-            pressure: m.pressure,
-            node_mass: m.node_mass,
+            young: s.young,
+            poisson: s.poisson,
+            thickness: s.thickness,
+            pressure: s.pressure,
+            node_mass: s.node_mass,
+            kn: s.kn,
+            ks: s.ks,
+            damping: s.damping,
             sealed: m.sealed,
             pins: m.pins.iter().map(|p| [p.node, p.wall]).collect(),
+            guide: m.guide.map(|g| [g.bottom, g.top]),
             rest: m.rest.iter().map(a3).collect(),
         }
     }
@@ -226,16 +240,23 @@ impl MembraneRecord {
             .map(|&[node, wall]| Pin { node, wall })
             .collect();
         let rest = self.rest.iter().map(v3).collect();
+        let sheet = Sheet {
+            young: self.young,
+            poisson: self.poisson,
+            thickness: self.thickness,
+            pressure: self.pressure,
+            node_mass: self.node_mass,
+            kn: self.kn,
+            ks: self.ks,
+            damping: self.damping,
+        };
         Membrane::new(
-            self.young,
-            self.poisson,
-            self.thickness,
-            self.pressure,
-            self.node_mass,
+            sheet,
             rest,
             triangles,
             pins,
             self.sealed,
+            self.guide.map(|[bottom, top]| Guide { bottom, top }),
             usize::MAX,
         )
         .map_err(|e| format!("membrane: {e}"))
@@ -901,16 +922,7 @@ fn check_membranes(world: &mut World) -> Result<(), StateError> {
             )));
         }
         elastic += m.elastic_energy(nodes, triangles);
-        kinetic += (node_velocities.iter().enumerate())
-            .filter(|(i, _)| m.pin_of(*i).is_none() || !m.sealed)
-            .map(|(i, v)| {
-                let v = match m.pin_of(i).map(|w| &world.walls[w as usize].kind) {
-                    Some(WallKind::Plane { normal, .. }) => v - normal * normal.dot(v),
-                    _ => *v,
-                };
-                0.5 * m.node_mass * v.norm_squared()
-            })
-            .sum::<f64>();
+        kinetic += crate::dem::membrane::kinetic_energy(m, node_velocities, &world.walls);
     }
     world.energy.membrane_kinetic = kinetic;
     world.energy.membrane_elastic = elastic;

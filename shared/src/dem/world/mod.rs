@@ -381,10 +381,9 @@ impl World {
     /// The smallest critical step of the membranes' nodes ([`crate::dem::membrane::Membrane::critical_dt`]), infinite
     /// without membranes.
     pub fn membranes_critical_dt(&self) -> f64 {
-        let k = self.material.kn.max(self.material.ks);
         (self.walls.iter())
             .filter_map(|w| match (&w.kind, &w.membrane) {
-                (WallKind::Facets { triangles, .. }, Some(m)) => Some(m.critical_dt(triangles, k)),
+                (WallKind::Facets { triangles, .. }, Some(m)) => Some(m.critical_dt(triangles)),
                 _ => None,
             })
             .fold(f64::INFINITY, f64::min)

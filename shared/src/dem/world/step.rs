@@ -161,11 +161,13 @@ impl World {
         poses
     }
 
-    /// Contact forces of one touching pair from its overlap.
+    /// Contact forces of one touching pair from its overlap, under `material`'s stiffness.
     /// `omega`: the angular velocity of the key's body; `last`: the contact of `key` last
     /// step, if any.
+    #[allow(clippy::too_many_arguments)]
     fn touch(
         &self,
+        material: &Material,
         key: ContactKey,
         omega: &Vec3,
         last: Option<&Contact>,
@@ -177,16 +179,7 @@ impl World {
         let (n, depth) = o.normal_depth();
         let point = o.centroid;
         let rel = b.velocity_with(omega, &point) - va;
-        let law = law::linear(
-            &self.material,
-            self.dt,
-            n,
-            depth,
-            point,
-            rel,
-            last,
-            friction,
-        );
+        let law = law::linear(material, self.dt, n, depth, point, rel, last, friction);
         let touch = Touch {
             force: law.force,
             point,
@@ -403,6 +396,7 @@ impl World {
             let va = bi.velocity_with(&omegas[i as usize], &o.centroid);
             let last = last.map(|(c, _)| c);
             let (contact, mut touch) = self.touch(
+                &self.material,
                 key,
                 &omegas[j as usize],
                 last,
@@ -495,7 +489,9 @@ impl World {
                 let grid = grids[w as usize].as_ref();
                 let (hit, found) =
                     wall.touch_kept(shape, &posed[i as usize], radius, kept, grid)?;
+                let material = wall_material(wall, &this.material);
                 let (mut contact, t) = this.touch(
+                    &material,
                     key,
                     &omegas[i as usize],
                     last,
@@ -514,7 +510,7 @@ impl World {
                 };
                 if hit.couple != Vec3::zeros() {
                     // The spots' moment does work as the body turns (the wall does not).
-                    extra.couple = hit.couple * this.material.kn;
+                    extra.couple = hit.couple * material.kn;
                     contact.potential -= extra.couple.dot(&omegas[i as usize]) * this.dt;
                 }
                 part.push(key, contact);
@@ -698,9 +694,9 @@ impl World {
             }
             let wall_contacts = parts[pair_parts..].iter().flat_map(|p| p.values());
             for (((t, x), c), key) in wall_touches.iter().zip(wall_contacts).zip(&wall_keys) {
-                sums.add(c, t, material);
                 if let Partner::Wall(w) = key.0 {
                     let wall = &mut walls[w as usize];
+                    sums.add(c, t, &wall_material(wall, material));
                     wall.push(&-t.force, &x.node_weights);
                     // A membrane's contacts are internal (see `membrane`).
                     if wall.membrane.is_none() {
@@ -780,6 +776,19 @@ impl World {
         self.time += dt;
         self.step += 1;
         (chunks, old_parts)
+    }
+}
+
+/// The material a wall's contacts follow: the world's, with a membrane's own contact
+/// stiffness ([`membrane::Sheet`]).
+fn wall_material(wall: &crate::dem::wall::Wall, material: &Material) -> Material {
+    match &wall.membrane {
+        Some(m) => Material {
+            kn: m.sheet.kn,
+            ks: m.sheet.ks,
+            ..*material
+        },
+        None => *material,
     }
 }
 

@@ -1,0 +1,665 @@
+//! triax: the drained conventional triaxial test of a pack specimen, with a flexible membrane.
+
+use anyhow::{bail, Context};
+use clap::Parser;
+use shared::cli;
+use shared::dem::io::state::{self, Item, StateStream};
+use shared::dem::io::vtk::Snapshots;
+use shared::dem::world::World;
+use shared::lab::triax::{self, Event, Measure, Params, Progress, Triax, TriaxError};
+use std::io::{BufRead, Write};
+use std::process::ExitCode;
+
+const EXAMPLES: &str = "\
+Examples:
+  polygen --faces 6..14 --seed 7 | abrade --levels 2 | pack --seed 1 > ab2-spec.jsonl
+  triax < ab2-spec.jsonl > ab2-triax.jsonl                       (100 kPa, to 15 % axial strain)
+  triax --summary ab2.json --csv ab2.csv < ab2-spec.jsonl > ab2-triax.jsonl
+  triax --pressure 2e5 --rate 0.2 --final-strain 0.2 < spec.jsonl > run.jsonl
+  triax --stop-at 0.05 < spec.jsonl > part.jsonl && triax < part.jsonl > rest.jsonl
+      (cat part.jsonl rest.jsonl: the same bytes as the run in one go)
+  triax --vtk out/run-vtk --obj end.obj < spec.jsonl > run.jsonl && render < end.obj > end.png
+  dem --frame last --steps 0 --obj end.obj < run.jsonl > /dev/null   (any frame is a dem state)
+
+Standard input: a specimen made by pack in a cylinder (a dem state whose walls are the bottom
+platen, the top platen and the cylinder), or a stream this tool wrote, which it resumes from
+its last frame. Standard output (JSON lines, docs/formats/triax-stream.md): the settings, then
+a measurement every --every of axial strain and a frame (a complete dem state after a frame
+record) every --frame-every, at the start of loading and at the end. Progress goes to standard
+error unless --quiet.
+
+The test (docs/models/triax.md): the cylinder becomes a membrane (--membrane-young,
+--membrane-poisson, --membrane-thickness; facets no larger than --membrane-edge, by default the
+smallest particle) sealed to the platens, under --pressure on its outside; the platens servo to
+the same pressure until the specimen is in equilibrium (isotropic consolidation); then they
+approach each other at the constant logarithmic strain rate --rate, the confining pressure held,
+to --final-strain. Strains: axial ln(H0 / H), volumetric ln(V0 / V) of the volume the membrane
+and the platens enclose, compression positive; stresses in Pa, compression positive.";
+
+/// The drained triaxial test of a pack specimen, with a flexible membrane
+#[derive(Parser, Debug)]
+#[command(version, after_help = EXAMPLES)]
+struct Cli {
+    /// Confining pressure, Pa
+    #[arg(long, default_value_t = 1e5, allow_negative_numbers = true)]
+    pressure: f64,
+    /// Axial strain ln(H0 / H) at which loading ends
+    #[arg(long, default_value_t = 0.15, allow_negative_numbers = true)]
+    final_strain: f64,
+    /// Axial strain rate, 1/s
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    rate: f64,
+    /// Axial strain between measurements
+    #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
+    every: f64,
+    /// Axial strain between frames (complete states)
+    #[arg(long, default_value_t = 5e-3, allow_negative_numbers = true)]
+    frame_every: f64,
+    /// The membrane's Young's modulus, Pa
+    #[arg(long, default_value_t = 7.8e6, allow_negative_numbers = true)]
+    membrane_young: f64,
+    /// The membrane's Poisson's ratio (rubber: nearly incompressible)
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    membrane_poisson: f64,
+    /// The membrane's thickness, m
+    #[arg(long, default_value_t = 2e-3, allow_negative_numbers = true)]
+    membrane_thickness: f64,
+    /// The membrane's largest facet edge, m [default: the smallest particle's size]
+    #[arg(long, allow_negative_numbers = true)]
+    membrane_edge: Option<f64>,
+    /// Normal stiffness of the particles' contacts with the membrane, N/m (shear: half): the
+    /// rubber sheet is far softer than the particles' own contacts
+    #[arg(long, default_value_t = 1e6, allow_negative_numbers = true)]
+    membrane_kn: f64,
+    /// Local damping of the membrane's nodes (a boundary device: its inertia is not the
+    /// rubber's)
+    #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
+    membrane_damping: f64,
+    /// Keep the bodies' true inertia (slower: the smallest particle sets the time step)
+    #[arg(long)]
+    no_inertia_scaling: bool,
+    /// Time step over the critical one
+    #[arg(long, default_value_t = 0.2, allow_negative_numbers = true)]
+    safety: f64,
+    /// Consolidation ends with both platens within this relative tolerance of --pressure
+    #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
+    tolerance: f64,
+    /// ... and the unbalanced-force ratio below this
+    #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
+    unbalanced: f64,
+    /// The most steps consolidation may take
+    #[arg(long, default_value_t = 2_000_000)]
+    max_steps: u64,
+    /// End the run at the first frame at or past this axial strain (resume it later from
+    /// the stream)
+    #[arg(long, allow_negative_numbers = true)]
+    stop_at: Option<f64>,
+    /// Write the test's summary (peak q, E50, Poisson's ratio, friction and dilatancy angles,
+    /// final volumetric strain) as one JSON line to FILE
+    #[arg(long, value_name = "FILE")]
+    summary: Option<std::path::PathBuf>,
+    /// Write the measurements as CSV to FILE (for `plot`)
+    #[arg(long, value_name = "FILE")]
+    csv: Option<std::path::PathBuf>,
+    /// Write VTK snapshots (particles, contacts, walls with the membrane) at every frame into DIR
+    #[arg(long, value_name = "DIR")]
+    vtk: Option<std::path::PathBuf>,
+    /// Write the bodies at the end as an OBJ stream to FILE, each coloured by its rotation
+    /// since the start of loading (blue none, red the most), for `render`
+    #[arg(long, value_name = "FILE")]
+    obj: Option<std::path::PathBuf>,
+    /// The group (`render` cell) of the --obj objects
+    #[arg(long, default_value = "triax")]
+    obj_group: String,
+    /// No progress on standard error
+    #[arg(long)]
+    quiet: bool,
+}
+
+fn main() -> ExitCode {
+    cli::run("triax", || run(Cli::parse()))
+}
+
+/// The stream's first line: its format and the test's settings.
+#[derive(serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Settings {
+    #[serde(rename = "type")]
+    kind: String,
+    format: String,
+    version: u32,
+    params: Params,
+    /// The membrane as made: nodes, triangles, the mass of a node (kg) and the time step (s).
+    nodes: usize,
+    triangles: usize,
+    node_mass: f64,
+    dt: f64,
+    particles: usize,
+}
+
+/// A measurement's record: its type first, as every record of these streams.
+#[derive(serde::Serialize)]
+struct MeasureRecord<'a> {
+    #[serde(rename = "type")]
+    kind: &'static str,
+    #[serde(flatten)]
+    measure: &'a Measure,
+}
+
+/// A frame's record, before its state.
+#[derive(serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FrameRecord {
+    #[serde(rename = "type")]
+    kind: String,
+    axial_strain: f64,
+    step: u64,
+    progress: Progress,
+}
+
+const FORMAT: &str = "granular-triax";
+const VERSION: u32 = 1;
+
+fn params_of(args: &Cli) -> Params {
+    Params {
+        pressure: args.pressure,
+        final_strain: args.final_strain,
+        rate: args.rate,
+        young: args.membrane_young,
+        poisson: args.membrane_poisson,
+        thickness: args.membrane_thickness,
+        edge: args.membrane_edge,
+        membrane_kn: args.membrane_kn,
+        membrane_damping: args.membrane_damping,
+        every: args.every,
+        frame_every: args.frame_every,
+        inertia_scaling: !args.no_inertia_scaling,
+        safety: args.safety,
+        tolerance: args.tolerance,
+        unbalanced: args.unbalanced,
+        max_steps: args.max_steps,
+        ..Params::default()
+    }
+}
+
+/// A triax error as the user of this tool meets it: a parameter by its option's name.
+fn flagged(e: TriaxError) -> anyhow::Error {
+    match e {
+        TriaxError::Param { field, rule } => {
+            let flag = match field {
+                "young" | "poisson" | "thickness" | "edge" => format!("membrane-{field}"),
+                "membrane_kn" => "membrane-kn".into(),
+                "membrane_damping" => "membrane-damping".into(),
+                f => f.replace('_', "-"),
+            };
+            cli::usage(format!("--{flag} {rule}"))
+        }
+        e => e.into(),
+    }
+}
+
+/// What the input is: a specimen to test, or a stream to resume.
+enum Input {
+    Specimen(World),
+    Resume {
+        params: Params,
+        world: World,
+        progress: Progress,
+        /// The measurements before the frame resumed from, and the first frame's orientations.
+        series: Vec<Measure>,
+        start: Option<Vec<nalgebra::UnitQuaternion<f64>>>,
+    },
+}
+
+/// Reads standard input: a pack specimen (a dem state) or a triax stream.
+fn read_input() -> anyhow::Result<Input> {
+    let mut input = cli::stdin();
+    let first = loop {
+        let buf = input.fill_buf().context("reading standard input")?;
+        if buf.is_empty() {
+            bail!("the input is empty: expected a pack specimen or a triax stream");
+        }
+        let line_end = buf.iter().position(|&b| b == b'\n').unwrap_or(buf.len());
+        let text = String::from_utf8_lossy(&buf[..line_end]).to_string();
+        if !text.trim().is_empty() {
+            break text;
+        }
+        let skip = (line_end + 1).min(buf.len());
+        input.consume(skip);
+    };
+    match state::record_type(&first).as_deref() {
+        Some("header") => Ok(Input::Specimen(state::read_world(input)?)),
+        Some("triax") => read_stream(input),
+        Some(t) => bail!(
+            "line 1: a '{t}' record: expected a pack specimen (a dem state) or a triax stream"
+        ),
+        None => bail!("line 1: not a JSON record with a \"type\""),
+    }
+}
+
+/// A triax stream: its settings, its measurements and its last frame.
+fn read_stream(input: impl BufRead) -> anyhow::Result<Input> {
+    let mut params = None;
+    let (mut series, mut pending) = (Vec::new(), Vec::new());
+    let mut frame: Option<(FrameRecord, usize)> = None;
+    let mut last: Option<(World, Progress)> = None;
+    let mut start = None;
+    for item in StateStream::new(input) {
+        match item? {
+            Item::Record(v, n) => match v.get("type").and_then(|t| t.as_str()) {
+                Some("triax") => {
+                    let s: Settings = serde_json::from_value(v)
+                        .map_err(|e| anyhow::anyhow!("line {n}: triax settings: {e}"))?;
+                    if s.format != FORMAT || s.version != VERSION {
+                        bail!("line {n}: format {} version {}: this triax reads {FORMAT} version {VERSION}", s.format, s.version);
+                    }
+                    if params.is_some() {
+                        bail!("line {n}: a second settings record");
+                    }
+                    params = Some(s.params);
+                }
+                Some("measure") => pending.push(
+                    serde_json::from_value::<Measure>(v)
+                        .map_err(|e| anyhow::anyhow!("line {n}: measure: {e}"))?,
+                ),
+                Some("frame") => {
+                    let f: FrameRecord = serde_json::from_value(v)
+                        .map_err(|e| anyhow::anyhow!("line {n}: frame: {e}"))?;
+                    frame = Some((f, n));
+                }
+                Some(t) => bail!("line {n}: a '{t}' record in a triax stream"),
+                None => bail!("line {n}: a record without a type"),
+            },
+            Item::State(w, n) => {
+                let Some((f, _)) = frame.take() else {
+                    bail!("line {n}: a state without its frame record before it");
+                };
+                if start.is_none() {
+                    start = Some(w.bodies.iter().map(|b| b.rot).collect());
+                }
+                series.append(&mut pending);
+                last = Some((*w, f.progress));
+            }
+        }
+    }
+    let Some(params) = params else {
+        bail!("the triax stream has no settings record");
+    };
+    if let Some((_, n)) = frame {
+        bail!("line {n}: the stream ends in a frame record without its state (truncated?)");
+    }
+    let Some((world, progress)) = last else {
+        bail!("the triax stream holds no frame to resume from");
+    };
+    Ok(Input::Resume {
+        params,
+        world,
+        progress,
+        series,
+        start,
+    })
+}
+
+/// Colour of a rotation `angle` on a scale to `top`: blue, through yellow, to red.
+fn rotation_colour(angle: f64, top: f64) -> String {
+    let t = if top > 0.0 {
+        (angle / top).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let stops = [
+        (0.0, [49.0, 54.0, 149.0]),
+        (0.5, [254.0, 224.0, 144.0]),
+        (1.0, [165.0, 0.0, 38.0]),
+    ];
+    let k = if t <= 0.5 { 0 } else { 1 };
+    let (a, b) = (stops[k], stops[k + 1]);
+    let f = (t - a.0) / (b.0 - a.0);
+    let c: Vec<String> = (0..3)
+        .map(|i| format!("{:02x}", (a.1[i] + f * (b.1[i] - a.1[i])).round() as u8))
+        .collect();
+    c.concat()
+}
+
+/// The bodies as an OBJ stream, coloured by their rotation since `start` (on a scale to the
+/// 95th percentile, so that a few spinning rattlers do not wash the picture out).
+fn bodies_obj(
+    world: &World,
+    start: &[nalgebra::UnitQuaternion<f64>],
+    group: &str,
+) -> anyhow::Result<Vec<u8>> {
+    let angles: Vec<f64> = (world.bodies.iter().zip(start))
+        .map(|(b, s)| b.rot.angle_to(s))
+        .collect();
+    let mut sorted = angles.clone();
+    sorted.sort_by(f64::total_cmp);
+    let top = sorted
+        .get((sorted.len() * 95) / 100)
+        .copied()
+        .unwrap_or(0.0);
+    let mut out = shared::geometry::obj::ObjWriter::relative(Vec::new());
+    for (id, (b, angle)) in world.bodies.iter().zip(&angles).enumerate() {
+        let shape = &world.shapes[b.shape as usize];
+        let mut mesh = shape.posed_mesh(&b.pos, &b.rot, b.scale);
+        mesh.name = format!("{group}/{id}");
+        mesh.attrs
+            .0
+            .push(("color".into(), rotation_colour(*angle, top)));
+        out.object(&mesh, &[])?;
+    }
+    Ok(out.into_inner()?)
+}
+
+/// Output files are checked before the run: their folders exist.
+fn check_output(path: &Option<std::path::PathBuf>, flag: &str) -> anyhow::Result<()> {
+    if let Some(p) = path {
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty());
+        if let Some(d) = dir {
+            if !d.is_dir() {
+                bail!(
+                    "{flag} {}: the folder {} does not exist",
+                    p.display(),
+                    d.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+fn run(args: Cli) -> anyhow::Result<()> {
+    if args.obj_group.is_empty() || args.obj_group.contains(['/', ' ']) {
+        return Err(cli::usage(format!(
+            "--obj-group must be a word without spaces or '/', got '{}'",
+            args.obj_group
+        )));
+    }
+    if let Some(s) = args.stop_at {
+        if !(s >= 0.0 && s.is_finite()) {
+            return Err(cli::usage(format!(
+                "--stop-at must be an axial strain of 0 or more, got {s}"
+            )));
+        }
+    }
+    params_of(&args).check().map_err(flagged)?;
+    for (path, flag) in [
+        (&args.summary, "--summary"),
+        (&args.csv, "--csv"),
+        (&args.obj, "--obj"),
+    ] {
+        check_output(path, flag)?;
+    }
+    let clock = std::time::Instant::now();
+    let quiet = args.quiet;
+    let say = |msg: String| {
+        if !quiet {
+            eprintln!("triax: {msg}");
+        }
+    };
+    // Written from the pool's thread as the test goes: a handle that is `Send`.
+    let mut out = std::io::BufWriter::with_capacity(1 << 20, std::io::stdout());
+    let (mut test, mut series, mut start) = match read_input()? {
+        Input::Specimen(world) => {
+            let mut test = Triax::new(world, params_of(&args)).map_err(flagged)?;
+            let (nodes, triangles, node_mass) = match (
+                &test.world.walls[triax::MEMBRANE].kind,
+                &test.world.walls[triax::MEMBRANE].membrane,
+            ) {
+                (
+                    shared::dem::wall::WallKind::Facets {
+                        nodes, triangles, ..
+                    },
+                    Some(m),
+                ) => (nodes.len(), triangles.len(), m.sheet.node_mass),
+                _ => bail!("the membrane was not made"),
+            };
+            let settings = Settings {
+                kind: "triax".into(),
+                format: FORMAT.into(),
+                version: VERSION,
+                params: test.params.clone(),
+                nodes,
+                triangles,
+                node_mass,
+                dt: test.world.dt,
+                particles: test.world.bodies.len(),
+            };
+            writeln!(out, "{}", serde_json::to_string(&settings)?)?;
+            say(format!(
+                "{} particles; membrane of {nodes} nodes ({node_mass:.3e} kg each), {triangles} triangles; time step {:.4e} s; consolidating at {} Pa",
+                test.world.bodies.len(),
+                test.world.dt,
+                test.params.pressure
+            ));
+            let mut report = |e: Event| {
+                if let Event::Consolidating(step, s, u) = e {
+                    say(format!(
+                        "consolidation step {step}: platens {:.4e} {:.4e} Pa, unbalanced {u:.3e}",
+                        s[0], s[1]
+                    ));
+                }
+            };
+            test.consolidate(2_000, &mut report)?;
+            say(format!(
+                "consolidated in {} steps ({:.1} s); loading at {} /s to axial strain {}",
+                test.world.step,
+                clock.elapsed().as_secs_f64(),
+                test.params.rate,
+                test.params.final_strain
+            ));
+            (test, Vec::new(), None)
+        }
+        Input::Resume {
+            params,
+            world,
+            progress,
+            series,
+            start,
+        } => {
+            if progress.phase != "loading" {
+                bail!(
+                    "the last frame is not in loading (phase '{}')",
+                    progress.phase
+                );
+            }
+            let test = Triax::resume(world, params, progress).map_err(flagged)?;
+            say(format!(
+                "resuming at step {} (axial strain {:.4}) with the stream's settings",
+                test.world.step,
+                (test.progress.height0 / test.measure().height).ln()
+            ));
+            (test, series, start)
+        }
+    };
+    let mut snapshots = match &args.vtk {
+        Some(dir) => {
+            Some(Snapshots::new(dir).with_context(|| format!("creating {}", dir.display()))?)
+        }
+        None => None,
+    };
+    let loading_clock = std::time::Instant::now();
+    let first_step = test.world.step;
+    let mut failure: Option<anyhow::Error> = None;
+    let mut sink = |e: Event| {
+        if failure.is_some() {
+            return;
+        }
+        let r = (|| -> anyhow::Result<()> {
+            match e {
+                Event::Measure(m) => {
+                    let record = MeasureRecord {
+                        kind: "measure",
+                        measure: m,
+                    };
+                    writeln!(out, "{}", serde_json::to_string(&record)?)?;
+                    if !quiet {
+                        let rate = (test_steps(m.step, first_step)) as f64
+                            / loading_clock.elapsed().as_secs_f64().max(1e-9);
+                        eprintln!(
+                            "triax: axial strain {:.4}: q {:.4e} Pa, volumetric strain {:.4e}, {:.0} steps/s",
+                            m.axial_strain, m.q_boundary, m.volumetric_strain, rate
+                        );
+                    }
+                    series.push(m.clone());
+                }
+                Event::Frame(w, progress) => {
+                    let strain = series.last().map_or(0.0, |m| m.axial_strain);
+                    let f = FrameRecord {
+                        kind: "frame".into(),
+                        axial_strain: strain,
+                        step: w.step,
+                        progress: progress.clone(),
+                    };
+                    writeln!(out, "{}", serde_json::to_string(&f)?)?;
+                    state::write_world(w, &mut out)?;
+                    if start.is_none() {
+                        start = Some(w.bodies.iter().map(|b| b.rot).collect());
+                    }
+                    if let Some(s) = snapshots.as_mut() {
+                        s.write(w).context("writing a VTK snapshot")?;
+                    }
+                }
+                Event::Consolidating(..) => {}
+            }
+            Ok(())
+        })();
+        if let Err(e) = r {
+            failure = Some(e);
+        }
+    };
+    if test.progress.frames > 0 && test_is_done(&test) {
+        say("the stream's test is complete: nothing to do".into());
+    } else {
+        test.load(args.stop_at, &mut sink)?;
+    }
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    out.flush()?;
+    if let Some(path) = &args.csv {
+        let mut w =
+            csv::Writer::from_path(path).with_context(|| format!("writing {}", path.display()))?;
+        for m in &series {
+            w.serialize(CsvRow::of(m))?;
+        }
+        w.flush()?;
+    }
+    if let Some(path) = &args.obj {
+        let start = start.unwrap_or_else(|| test.world.bodies.iter().map(|b| b.rot).collect());
+        std::fs::write(path, bodies_obj(&test.world, &start, &args.obj_group)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    let summary = triax::summarize(&series);
+    if let Some(s) = &summary {
+        say(format!(
+            "peak q {:.4e} Pa at axial strain {:.4}; E50 {:.4e} Pa; Poisson's ratio {:.3}; friction angle {:.2} deg; dilatancy angle {:.2} deg; final volumetric strain {:.4e}; {} steps in {:.1} s",
+            s.peak_q, s.peak_strain, s.e50, s.poisson, s.friction_angle, s.dilatancy_angle,
+            s.final_volumetric_strain, test.world.step, clock.elapsed().as_secs_f64()
+        ));
+    }
+    if let Some(path) = &args.summary {
+        let mut line = match &summary {
+            Some(s) => serde_json::to_value(s)?,
+            None => serde_json::json!({}),
+        };
+        line["particles"] = serde_json::json!(test.world.bodies.len());
+        line["steps"] = serde_json::json!(test.world.step);
+        line["dt"] = serde_json::json!(test.world.dt);
+        line["wall_clock"] = serde_json::json!(clock.elapsed().as_secs_f64());
+        line["params"] = serde_json::to_value(&test.params)?;
+        std::fs::write(path, format!("{line}\n"))
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// Steps since loading (re)started.
+fn test_steps(step: u64, first: u64) -> u64 {
+    step.saturating_sub(first)
+}
+
+/// Whether the test's last frame is its final one (the final strain reached).
+fn test_is_done(test: &Triax) -> bool {
+    let m = test.measure();
+    (test.progress.height0 / m.height).ln() >= test.params.final_strain
+}
+
+/// A measurement as a CSV row (the stress tensor's components as columns).
+#[derive(serde::Serialize)]
+struct CsvRow {
+    step: u64,
+    time: f64,
+    axial_strain: f64,
+    volumetric_strain: f64,
+    height: f64,
+    volume: f64,
+    sigma1: f64,
+    sigma3: f64,
+    q_boundary: f64,
+    p_boundary: f64,
+    ratio_boundary: f64,
+    sxx: f64,
+    syy: f64,
+    szz: f64,
+    sxy: f64,
+    sxz: f64,
+    syz: f64,
+    p: f64,
+    q: f64,
+    ratio: f64,
+    p_pairs: f64,
+    membrane_stress: f64,
+    coordination: f64,
+    mechanical_coordination: f64,
+    radius_mean: f64,
+    radius_max: f64,
+    inertial: f64,
+    unbalanced: f64,
+    contacts: usize,
+}
+
+impl CsvRow {
+    fn of(m: &Measure) -> CsvRow {
+        let [sxx, syy, szz, sxy, sxz, syz] = m.stress;
+        CsvRow {
+            step: m.step,
+            time: m.time,
+            axial_strain: m.axial_strain,
+            volumetric_strain: m.volumetric_strain,
+            height: m.height,
+            volume: m.volume,
+            sigma1: m.sigma1,
+            sigma3: m.sigma3,
+            q_boundary: m.q_boundary,
+            p_boundary: m.p_boundary,
+            ratio_boundary: m.ratio_boundary,
+            sxx,
+            syy,
+            szz,
+            sxy,
+            sxz,
+            syz,
+            p: m.p,
+            q: m.q,
+            ratio: m.ratio,
+            p_pairs: m.p_pairs,
+            membrane_stress: m.membrane_stress,
+            coordination: m.coordination,
+            mechanical_coordination: m.mechanical_coordination,
+            radius_mean: m.radius_mean,
+            radius_max: m.radius_max,
+            inertial: m.inertial,
+            unbalanced: m.unbalanced,
+            contacts: m.contacts,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn cli_is_well_formed() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
+    }
+}
