@@ -67,10 +67,11 @@ struct Cli {
     /// The membrane's largest facet edge, m [default: the smallest particle's size]
     #[arg(long, allow_negative_numbers = true)]
     membrane_edge: Option<f64>,
-    /// Normal stiffness of the particles' contacts with the membrane, N/m (shear: half): the
-    /// rubber sheet is far softer than the particles' own contacts
-    #[arg(long, default_value_t = 1e6, allow_negative_numbers = true)]
-    membrane_kn: f64,
+    /// Stiffness of the particles' contacts with the membrane, N/m^3: the pressure on a facet
+    /// over the local penetration (a Winkler foundation) [default: the sheet's compression,
+    /// --membrane-young / --membrane-thickness]
+    #[arg(long, allow_negative_numbers = true)]
+    membrane_stiffness: Option<f64>,
     /// Local damping of the membrane's nodes (a boundary device: its inertia is not the
     /// rubber's)
     #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
@@ -169,7 +170,7 @@ fn params_of(args: &Cli) -> Params {
         poisson: args.membrane_poisson,
         thickness: args.membrane_thickness,
         edge: args.membrane_edge,
-        membrane_kn: args.membrane_kn,
+        membrane_stiffness: args.membrane_stiffness,
         membrane_damping: args.membrane_damping,
         every: args.every,
         frame_every: args.frame_every,
@@ -188,7 +189,7 @@ fn flagged(e: TriaxError) -> anyhow::Error {
         TriaxError::Param { field, rule } => {
             let flag = match field {
                 "young" | "poisson" | "thickness" | "edge" => format!("membrane-{field}"),
-                "membrane_kn" => "membrane-kn".into(),
+                "membrane_stiffness" => "membrane-stiffness".into(),
                 "membrane_damping" => "membrane-damping".into(),
                 f => f.replace('_', "-"),
             };

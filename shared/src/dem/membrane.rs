@@ -47,8 +47,9 @@ pub struct Sheet {
     pub pressure: f64,
     /// Mass of each node, kg.
     pub node_mass: f64,
-    /// Normal and shear stiffness of the particles' contacts with the membrane, N/m (a rubber
-    /// sheet is far softer than the particles).
+    /// Stiffness of the particles' contacts with the membrane, N/m^3: each facet a Winkler
+    /// foundation, the pressure on it this times the local penetration (a sheet of modulus
+    /// `E` and thickness `t` compressed: `E / t`); and the shear stiffness, N/m^3 likewise.
     pub kn: f64,
     pub ks: f64,
     /// Local damping of the nodes (`None`: the material's, as the bodies).
@@ -84,12 +85,17 @@ impl Sheet {
                 self.node_mass > 0.0,
                 "a positive mass in kg",
             ),
-            ("kn", self.kn, self.kn > 0.0, "a positive stiffness in N/m"),
+            (
+                "kn",
+                self.kn,
+                self.kn > 0.0,
+                "a positive stiffness in N/m^3",
+            ),
             (
                 "ks",
                 self.ks,
                 self.ks >= 0.0,
-                "a stiffness of 0 or more in N/m",
+                "a stiffness of 0 or more in N/m^3",
             ),
         ];
         if let Some(d) = self.damping {
@@ -325,10 +331,37 @@ impl Membrane {
     }
 
     /// The critical time step of the nodes against their contacts' stiffness on top of the
-    /// membrane's own: `sqrt(m / (max(kn, ks) + k_membrane))`.
+    /// membrane's own: `sqrt(m / (max(kn, ks) A + k_membrane))`, `A` twice the largest rest
+    /// area of a node's triangles (a body pressed on all of them, stretched).
     pub fn critical_dt(&self, triangles: &[[u32; 3]]) -> f64 {
-        let k = self.sheet.kn.max(self.sheet.ks);
+        let k = self.sheet.kn.max(self.sheet.ks) * self.contact_area();
         (self.sheet.node_mass / (k + self.node_stiffness(triangles))).sqrt()
+    }
+
+    /// Twice the largest rest area of a node's triangles, m^2: the most a contact can press.
+    pub fn contact_area(&self) -> f64 {
+        2.0 * (self.corners.iter())
+            .map(|c| {
+                c.iter()
+                    .map(|&(t, _)| self.reference[t as usize].area)
+                    .sum::<f64>()
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// The walls that hold node `i` and each one's share of what it pushes on them: its
+    /// pinning wall, or the guide's two walls in proportion to its rest height; none for a
+    /// free node.
+    fn holders(&self, i: usize) -> Vec<(usize, f64)> {
+        if let Some(w) = self.pin_of(i) {
+            return vec![(w as usize, 1.0)];
+        }
+        match (&self.guide, self.guides.get(i)) {
+            (Some(g), Some(&(_, frac))) => {
+                vec![(g.bottom as usize, 1.0 - frac), (g.top as usize, frac)]
+            }
+            _ => Vec::new(),
+        }
     }
 
     /// The pinning wall of node `i`, if any.
@@ -590,6 +623,9 @@ pub fn kick(walls: &mut [Wall], k: usize, dt: f64, alpha: f64, par: bool) -> Mem
         _ => 0,
     };
     let constraints: Vec<(Space, Vec3)> = (0..n).map(|i| constraint(&m, walls, i)).collect();
+    // What the held nodes push on their walls (the part of their force the constraint takes),
+    // by wall: a sealed end carries the membrane's axial load to its platen, as in the test.
+    let mut reactions = vec![Vec3::zeros(); walls.len()];
     if let WallKind::Facets {
         nodes,
         triangles,
@@ -603,7 +639,14 @@ pub fn kick(walls: &mut [Wall], k: usize, dt: f64, alpha: f64, par: bool) -> Mem
             let free_old = space.project(&node_velocities[i]);
             let internal = elastic[i] + node_forces[i];
             // The force on the free motion, damped as a body's is.
-            let free_force = space.project(&(internal + pressure[i]));
+            let total = internal + pressure[i];
+            let free_force = space.project(&total);
+            let held = total - free_force;
+            if held != Vec3::zeros() {
+                for (w, share) in m.holders(i) {
+                    reactions[w] += held * share;
+                }
+            }
             let damp = space.damping(&free_force, &free_old, alpha);
             let free_new = free_old + (free_force + damp) * (dt / m.sheet.node_mass);
             let mean = (free_old + free_new) * 0.5;
@@ -617,6 +660,9 @@ pub fn kick(walls: &mut [Wall], k: usize, dt: f64, alpha: f64, par: bool) -> Mem
         }
     }
     walls[k].membrane = Some(m);
+    for (wall, r) in walls.iter_mut().zip(reactions) {
+        wall.force += r;
+    }
     out
 }
 

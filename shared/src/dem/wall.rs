@@ -81,10 +81,83 @@ pub struct WallHit {
     pub overlap: Overlap,
     pub velocity: Vec3,
     pub node_weights: Vec<(u32, f64)>,
+    /// For a membrane ([`winkler`]): each node's share of the pieces' pushes, `sum_p V_p n_p
+    /// w_pi` (m^3; times the contact's stiffness, N): the force the node takes, opposite.
+    pub node_pushes: Vec<(u32, Vec3)>,
     /// For an overlap in separate spots (see [`spots`]): the moment of the spots' pushes about
     /// `overlap.centroid`, per unit of normal stiffness (m^2; times `kn`, N m), on top of the
     /// push at the centroid. Zero for one spot.
     pub couple: Vec3,
+}
+
+/// A piece of a body's overlap with a facet wall: the triangle, its corners, the volume,
+/// centroid and cap of the overlap with its prism, and its unit normal.
+type Piece = ([u32; 3], [Vec3; 3], f64, Vec3, Vec3, Vec3);
+
+/// A body's contact with a membrane from its pieces: each facet a Winkler foundation (the
+/// rubber sheet's compression, a pressure proportional to the local penetration), so each
+/// piece pushes `k V_p n_p` at its centroid, `k` the membrane's stiffness (N/m^3). The pushes
+/// add up across facets (a face across two coplanar facets feels one plane), each is the
+/// gradient of its foundation's energy for a facet at rest, and each facet's nodes take its
+/// piece's push by the barycentric weights of its centroid: the nodes feel exactly what the
+/// body does. The contact reports `F = sum V_p n_p` as its depth (m^3) along its normal, at
+/// the pieces' volume centroid, with the couple of the pushes about it; its surface velocity
+/// is the nodes' by the pieces' volumes, with the part along `F` set so that `F . v` is the
+/// power of the pushes on the nodes (what the membrane takes from the contact's work).
+fn winkler(
+    pieces: &[Piece],
+    node_velocities: &[Vec3],
+    rigid: &Vec3,
+) -> Option<(WallHit, WallFound)> {
+    let volume: f64 = pieces.iter().map(|p| p.2).sum();
+    if !(volume > 0.0) {
+        return None;
+    }
+    let mut force: Vec3 = pieces.iter().map(|p| p.5 * p.2).sum();
+    let point: Vec3 = pieces.iter().map(|p| p.3 * (p.2 / volume)).sum();
+    // Pushes that cancel (a body pinched from opposite sides) keep a floor along the deepest.
+    let floor = 1e-12 * volume;
+    if !(force.norm() > floor) {
+        let deepest = pieces
+            .iter()
+            .max_by(|a, b| a.2.total_cmp(&b.2))
+            .map_or(Vec3::z(), |p| p.5);
+        force = deepest * floor;
+    }
+    let length = force.norm();
+    let normal = force / length;
+    let couple = pieces
+        .iter()
+        .map(|p| (p.3 - point).cross(&(p.5 * p.2)))
+        .sum();
+    let (mut node_weights, mut node_pushes) = (Vec::new(), Vec::new());
+    let (mut average, mut power) = (*rigid, 0.0);
+    for (t, q, v, c, _, n) in pieces {
+        for (k, w) in barycentric(q, c).into_iter().enumerate() {
+            let node = t[k];
+            let velocity = rigid + node_velocities[node as usize];
+            let push = n * (v * w);
+            average += node_velocities[node as usize] * (v / volume * w);
+            power += push.dot(&velocity);
+            node_weights.push((node, v / volume * w));
+            node_pushes.push((node, push));
+        }
+    }
+    let velocity = average + normal * (power / length - normal.dot(&average));
+    let overlap = Overlap {
+        volume: length,
+        centroid: point,
+        // depth() = volume / |area_b| = |F|, normal() along F.
+        area_b: -normal,
+    };
+    let hit = WallHit {
+        overlap,
+        velocity,
+        node_weights,
+        node_pushes,
+        couple,
+    };
+    Some((hit, WallFound::None))
 }
 
 /// One spot of a wall contact: the overlap of a run of adjacent facets' pieces and the normal
@@ -230,6 +303,7 @@ impl Wall {
                     overlap: o?,
                     velocity: self.velocity,
                     node_weights: Vec::new(),
+                    node_pushes: Vec::new(),
                     couple: Vec3::zeros(),
                 };
                 return Some((hit, found));
@@ -289,20 +363,16 @@ impl Wall {
                     }
                     if let Some((v, c, cap)) = overlap_behind_facet(s, b, &n, n.dot(&q[0]), &sides)
                     {
-                        pieces.push((*t, q, v, c, cap));
+                        pieces.push((*t, q, v, c, cap, n));
                     }
+                }
+                if self.membrane.is_some() {
+                    return winkler(&pieces, node_velocities, &self.velocity);
                 }
                 // Spots: pieces on triangles that share a node, and so on; each spot's pieces
                 // summed in piece order (`labels[k]`: the label of `list[k]`'s pieces).
                 let triangles: Vec<[u32; 3]> = pieces.iter().map(|p| p.0).collect();
-                // A membrane's pieces make one spot: its nodes then take the contact's force as
-                // the body does (a spot of its own for each would push its nodes with forces
-                // the body does not feel).
-                let label = if self.membrane.is_some() {
-                    vec![0; triangles.len()]
-                } else {
-                    connected(&triangles)
-                };
+                let label = connected(&triangles);
                 let mut sums: Vec<(usize, Sum)> = Vec::new();
                 for (piece, &l) in pieces.iter().zip(&label) {
                     if !sums.iter().any(|g| g.0 == l) {
@@ -329,7 +399,7 @@ impl Wall {
                 let total: f64 = list.iter().map(|g| g.overlap.depth()).sum();
                 let mut velocity = self.velocity;
                 let mut node_weights = Vec::new();
-                for ((t, q, v, c, _), l) in pieces.iter().zip(&label) {
+                for ((t, q, v, c, _, _), l) in pieces.iter().zip(&label) {
                     let Some(k) = labels.iter().position(|k| k == l) else {
                         continue;
                     };
@@ -345,6 +415,7 @@ impl Wall {
                     overlap,
                     velocity,
                     node_weights,
+                    node_pushes: Vec::new(),
                     couple,
                 })
             }
@@ -490,6 +561,7 @@ impl Wall {
                     velocity: self.velocity - normal * *radial_rate,
                     overlap,
                     node_weights: Vec::new(),
+                    node_pushes: Vec::new(),
                     couple,
                 })
             }
@@ -537,6 +609,29 @@ impl Wall {
         if let WallKind::Facets { node_forces, .. } = &mut self.kind {
             for &(node, w) in node_weights {
                 node_forces[node as usize] += f * w;
+            }
+        }
+    }
+
+    /// Adds `f`, pushed by a particle through a membrane contact of stiffness `k` with these
+    /// node pushes ([`winkler`]): each node takes minus `k` times its push, and what `f` holds
+    /// besides (a shear force) goes by the weights.
+    pub fn push_membrane(
+        &mut self,
+        f: &Vec3,
+        k: f64,
+        node_weights: &[(u32, f64)],
+        node_pushes: &[(u32, Vec3)],
+    ) {
+        self.force += f;
+        let normal: Vec3 = node_pushes.iter().map(|(_, p)| p).sum::<Vec3>() * k;
+        let rest = f + normal;
+        if let WallKind::Facets { node_forces, .. } = &mut self.kind {
+            for &(node, p) in node_pushes {
+                node_forces[node as usize] -= p * k;
+            }
+            for &(node, w) in node_weights {
+                node_forces[node as usize] += rest * w;
             }
         }
     }

@@ -52,8 +52,9 @@ pub struct Params {
     pub thickness: f64,
     /// The membrane's largest facet edge, m (`None`: the smallest particle's size).
     pub edge: Option<f64>,
-    /// Normal stiffness of the particles' contacts with the membrane, N/m (shear: half).
-    pub membrane_kn: f64,
+    /// Stiffness of the particles' contacts with the membrane, N/m^3 (a Winkler foundation:
+    /// pressure over penetration; `None`: the sheet's own, `young / thickness`; shear: half).
+    pub membrane_stiffness: Option<f64>,
     /// Local damping of the membrane's nodes.
     pub membrane_damping: f64,
     /// Axial strain between measurements, and between frames.
@@ -84,7 +85,7 @@ impl Default for Params {
             poisson: 0.5,
             thickness: 2e-3,
             edge: None,
-            membrane_kn: 1e6,
+            membrane_stiffness: None,
             membrane_damping: 0.7,
             every: 1e-3,
             frame_every: 5e-3,
@@ -137,7 +138,6 @@ impl Params {
             ("rate", self.rate),
             ("young", self.young),
             ("thickness", self.thickness),
-            ("membrane_kn", self.membrane_kn),
             ("every", self.every),
             ("frame_every", self.frame_every),
             ("tolerance", self.tolerance),
@@ -158,6 +158,14 @@ impl Params {
                 "final_strain",
                 format!("must be in (0, 1), got {}", self.final_strain),
             );
+        }
+        if let Some(k) = self.membrane_stiffness {
+            if !(k > 0.0 && k.is_finite()) {
+                return bad(
+                    "membrane_stiffness",
+                    format!("must be a positive stiffness, got {k}"),
+                );
+            }
         }
         if !(0.0..1.0).contains(&self.membrane_damping) {
             return bad(
@@ -386,14 +394,17 @@ impl Triax {
             .map(|(k, c)| (*k, c.clone()))
             .collect();
         world.contacts = Contacts::from_sorted(&kept, false, |x| x.0, |x| x.1.clone());
+        let stiffness = params
+            .membrane_stiffness
+            .unwrap_or(params.young / params.thickness);
         let sheet = Sheet {
             young: params.young,
             poisson: params.poisson,
             thickness: params.thickness,
             pressure: params.pressure,
             node_mass: 1.0,
-            kn: params.membrane_kn,
-            ks: 0.5 * params.membrane_kn,
+            kn: stiffness,
+            ks: 0.5 * stiffness,
             damping: Some(params.membrane_damping),
         };
         let mut membrane = Membrane::new(
@@ -416,7 +427,7 @@ impl Triax {
             .map(|&(t, r)| t.min(r))
             .fold(f64::INFINITY, f64::min);
         membrane.sheet.node_mass = node_mass(
-            sheet.kn.max(sheet.ks),
+            sheet.kn.max(sheet.ks) * membrane.contact_area(),
             membrane.node_stiffness(&triangles),
             bodies_dt,
         );

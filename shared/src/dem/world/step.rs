@@ -59,6 +59,10 @@ struct Narrow {
 struct WallExtra {
     /// For facet walls: the share of the force each node carries.
     node_weights: Vec<(u32, f64)>,
+    /// For a membrane: the nodes' pushes ([`crate::dem::wall::WallHit::node_pushes`]) and the
+    /// contact's stiffness.
+    node_pushes: Vec<(u32, Vec3)>,
+    stiffness: f64,
     /// For a wall contact in separate spots: the moment of the spots' pushes about the
     /// contact point, on top of `point x force` ([`crate::dem::wall::WallHit::couple`] times `kn`).
     couple: Vec3,
@@ -503,6 +507,8 @@ impl World {
                     last.map_or(Vec3::zeros(), |c| c.normal * c.normal_force + c.shear);
                 let mut extra = WallExtra {
                     node_weights: hit.node_weights,
+                    node_pushes: hit.node_pushes,
+                    stiffness: material.kn,
                     couple: Vec3::zeros(),
                     wall_work: 0.5 * (last_force + t.force).dot(&hit.velocity) * this.dt,
                     found,
@@ -697,7 +703,11 @@ impl World {
                 if let Partner::Wall(w) = key.0 {
                     let wall = &mut walls[w as usize];
                     sums.add(c, t, &wall_material(wall, material));
-                    wall.push(&-t.force, &x.node_weights);
+                    if x.node_pushes.is_empty() {
+                        wall.push(&-t.force, &x.node_weights);
+                    } else {
+                        wall.push_membrane(&-t.force, x.stiffness, &x.node_weights, &x.node_pushes);
+                    }
                     // A membrane's contacts are internal (see `membrane`).
                     if wall.membrane.is_none() {
                         wall_work += x.wall_work;
