@@ -7,9 +7,9 @@ export PATH := $(BIN):$(PATH)
 SHELL := /bin/bash
 .SHELLFLAGS := -o pipefail -ec
 
-.PHONY: all figures build test bench clean fig1 fig2 fig4 fig5 fig6 fig7 fig8
+.PHONY: all figures build test bench clean paper fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax
 all: figures
-figures: fig1 fig2 fig4 fig5 fig6 fig7 fig8
+figures: fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax
 
 build:
 	cargo build --release --locked --bins
@@ -19,7 +19,9 @@ $(OUT):
 
 include pipelines/geometry.mk
 include pipelines/specimen.mk
+include pipelines/triax.mk
 include pipelines/bench.mk
+include pipelines/paper.mk
 
 test:
 	cargo test --release --locked --workspace

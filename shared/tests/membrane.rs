@@ -41,6 +41,7 @@ fn tube(pressure: f64, damping: f64, guided: bool) -> World {
         kn: 1e6,
         ks: 5e5,
         damping: None,
+        reach: 0.01,
     };
     let guide = guided.then_some(Guide { bottom: 0, top: 1 });
     let m = Membrane::new(sheet, nodes.clone(), &triangles, pins, false, guide, 3).unwrap();

@@ -4,6 +4,7 @@ mod bad_input;
 mod dem;
 mod pack;
 mod pipes;
+mod triax;
 
 use std::io::Write;
 use std::process::{Command, Output, Stdio};
@@ -24,6 +25,7 @@ pub fn run_env(tool: &str, args: &[&str], stdin: &[u8], env: &[(&str, &str)]) ->
         "plot" => env!("CARGO_BIN_EXE_plot"),
         "dem" => env!("CARGO_BIN_EXE_dem"),
         "pack" => env!("CARGO_BIN_EXE_pack"),
+        "triax" => env!("CARGO_BIN_EXE_triax"),
         other => panic!("no tool {other}"),
     };
     let mut child = Command::new(exe)

@@ -203,7 +203,7 @@ fn read_frame(which: &str) -> anyhow::Result<World> {
     };
     let (mut seen, mut last) = (0, None);
     for item in state::StateStream::new(cli::stdin()) {
-        if let state::Item::State(w, _) = item? {
+        if let state::Item::State(w, _, _) = item? {
             seen += 1;
             if Some(seen) == wanted {
                 return Ok(*w);

@@ -10,6 +10,7 @@ const EXAMPLES: &str = "\
 Examples:
   roundness < t.csv ... | plot --x k --y s3d --series level > s3d.png
   plot --x k --y s3d --series level,cap --stats --band std --stats-out stats.csv < all.csv > fig7.png
+  plot --x level --y e50,poisson --stats < summaries.csv > fig11.png   (two panels)
 
 Without --stats every row is a point and rows of one series are joined in file order. With
 --stats rows are grouped by series and x, and the mean is drawn with a band (--band std: mean
@@ -23,9 +24,9 @@ struct Cli {
     /// Column for the x axis
     #[arg(long)]
     x: String,
-    /// Column for the y axis
-    #[arg(long)]
-    y: String,
+    /// Column for the y axis; several, comma-separated, draw one panel each, side by side
+    #[arg(long, value_delimiter = ',', required = true)]
+    y: Vec<String>,
     /// Columns (comma-separated) whose values name the series
     #[arg(long, value_delimiter = ',')]
     series: Vec<String>,
@@ -40,11 +41,11 @@ struct Cli {
     stats_out: Option<std::path::PathBuf>,
     #[arg(long, default_value = "")]
     title: String,
-    /// Axis labels (default: the column names)
+    /// Axis labels (default: the column names); one y label per panel, comma-separated
     #[arg(long)]
     xlabel: Option<String>,
-    #[arg(long)]
-    ylabel: Option<String>,
+    #[arg(long, value_delimiter = ',')]
+    ylabel: Vec<String>,
     /// Picture size WIDTHxHEIGHT
     #[arg(long, default_value = "900x600")]
     size: String,
@@ -82,13 +83,25 @@ fn run(args: Cli) -> anyhow::Result<()> {
             )
         })
     };
-    let (xi, yi) = (col(&args.x)?, col(&args.y)?);
+    let xi = col(&args.x)?;
+    let yis: Vec<usize> = args
+        .y
+        .iter()
+        .map(|y| col(y))
+        .collect::<anyhow::Result<_>>()?;
+    if !args.ylabel.is_empty() && args.ylabel.len() != args.y.len() {
+        return Err(cli::usage(format!(
+            "--ylabel has {} labels for {} y columns",
+            args.ylabel.len(),
+            args.y.len()
+        )));
+    }
     let si: Vec<usize> = args
         .series
         .iter()
         .map(|s| col(s))
         .collect::<anyhow::Result<_>>()?;
-    let mut rows: Vec<(Vec<String>, f64, f64)> = Vec::new();
+    let mut table: Vec<(Vec<String>, f64, Vec<f64>)> = Vec::new();
     for (n, rec) in rdr.records().enumerate() {
         let rec = rec.with_context(|| format!("CSV row {}", n + 2))?;
         let num = |i: usize| -> anyhow::Result<f64> {
@@ -105,15 +118,46 @@ fn run(args: Cli) -> anyhow::Result<()> {
             .iter()
             .map(|&i| rec.get(i).unwrap_or("").to_string())
             .collect();
-        rows.push((key, num(xi)?, num(yi)?));
+        let ys = yis.iter().map(|&i| num(i)).collect::<anyhow::Result<_>>()?;
+        table.push((key, num(xi)?, ys));
     }
-    if rows.is_empty() {
+    if table.is_empty() {
         bail!("the table has no rows");
     }
+    let mut panels = Vec::new();
+    for (j, y) in args.y.iter().enumerate() {
+        let rows: Vec<(Vec<String>, f64, f64)> = table
+            .iter()
+            .map(|(k, x, ys)| (k.clone(), *x, ys[j]))
+            .collect();
+        let ylabel = args.ylabel.get(j).cloned().unwrap_or_else(|| y.clone());
+        // The statistics of the first panel only go to --stats-out.
+        let stats_out = if j == 0 {
+            args.stats_out.as_ref()
+        } else {
+            None
+        };
+        let chart = chart_of(&args, &rows, ylabel, stats_out)?;
+        let width = w / args.y.len() as u32;
+        panels.push(
+            plot::draw(&chart, width, h).map_err(|e| anyhow::anyhow!("drawing the chart: {e}"))?,
+        );
+    }
+    cli::write_png_stdout(&plot::side_by_side(&panels))
+}
+
+/// The chart of `rows` (series key, x, y): every row a point, or with `--stats` the mean per
+/// (series, x) with a band; the statistics also to `stats_out`.
+fn chart_of(
+    args: &Cli,
+    rows: &[(Vec<String>, f64, f64)],
+    ylabel: String,
+    stats_out: Option<&std::path::PathBuf>,
+) -> anyhow::Result<Chart> {
     // Distinct values per series column, in order of appearance: colour by the first, dash by the second.
     let mut first_vals: Vec<String> = Vec::new();
     let mut second_vals: Vec<String> = Vec::new();
-    for (k, _, _) in &rows {
+    for (k, _, _) in rows {
         if let Some(v) = k.first() {
             if !first_vals.contains(v) {
                 first_vals.push(v.clone());
@@ -150,7 +194,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
             .map(|(k, x, y)| (k.join("\u{1f}"), *x, *y))
             .collect();
         let groups = plot::group_stats(&keyed);
-        let mut stats_csv = match &args.stats_out {
+        let mut stats_csv = match stats_out {
             Some(p) => {
                 let mut wtr = csv::Writer::from_path(p)
                     .with_context(|| format!("creating {}", p.display()))?;
@@ -225,7 +269,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
             wtr.flush()?;
         }
     } else {
-        for (k, x, y) in &rows {
+        for (k, x, y) in rows {
             let name = label(k);
             match series.iter_mut().find(|s| s.label == name) {
                 Some(s) => s.points.push((*x, *y)),
@@ -242,14 +286,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
             }
         }
     }
-    let chart = Chart {
+    Ok(Chart {
         title: args.title.clone(),
         xlabel: args.xlabel.clone().unwrap_or_else(|| args.x.clone()),
-        ylabel: args.ylabel.clone().unwrap_or_else(|| args.y.clone()),
+        ylabel,
         series,
-    };
-    let img = plot::draw(&chart, w, h).map_err(|e| anyhow::anyhow!("drawing the chart: {e}"))?;
-    cli::write_png_stdout(&img)
+    })
 }
 
 #[cfg(test)]

@@ -155,6 +155,8 @@ struct FrameRecord {
     kind: String,
     axial_strain: f64,
     step: u64,
+    /// The number of records of the state that follows: a frame cut short is found.
+    records: usize,
     progress: Progress,
 }
 
@@ -271,10 +273,16 @@ fn read_stream(input: impl BufRead) -> anyhow::Result<Input> {
                 Some(t) => bail!("line {n}: a '{t}' record in a triax stream"),
                 None => bail!("line {n}: a record without a type"),
             },
-            Item::State(w, n) => {
+            Item::State(w, n, records) => {
                 let Some((f, _)) = frame.take() else {
                     bail!("line {n}: a state without its frame record before it");
                 };
+                if records != f.records {
+                    bail!(
+                        "line {n}: the frame's state has {records} records, not {} (truncated?)",
+                        f.records
+                    );
+                }
                 if start.is_none() {
                     start = Some(w.bodies.iter().map(|b| b.rot).collect());
                 }
@@ -509,6 +517,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                         kind: "frame".into(),
                         axial_strain: strain,
                         step: w.step,
+                        records: state::record_count(w),
                         progress: progress.clone(),
                     };
                     writeln!(out, "{}", serde_json::to_string(&f)?)?;
@@ -541,7 +550,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         let mut w =
             csv::Writer::from_path(path).with_context(|| format!("writing {}", path.display()))?;
         for m in &series {
-            w.serialize(CsvRow::of(m))?;
+            w.serialize(CsvRow::of(m, test.params.every))?;
         }
         w.flush()?;
     }
@@ -554,7 +563,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
     if let Some(s) = &summary {
         say(format!(
             "peak q {:.4e} Pa at axial strain {:.4}; E50 {:.4e} Pa; Poisson's ratio {:.3}; friction angle {:.2} deg; dilatancy angle {:.2} deg; final volumetric strain {:.4e}; {} steps in {:.1} s",
-            s.peak_q, s.peak_strain, s.e50, s.poisson, s.friction_angle, s.dilatancy_angle,
+            s.peak_q, s.peak_strain, s.e50, s.poisson_ratio, s.friction_angle, s.dilatancy_angle,
             s.final_volumetric_strain, test.world.step, clock.elapsed().as_secs_f64()
         ));
     }
@@ -591,6 +600,9 @@ struct CsvRow {
     step: u64,
     time: f64,
     axial_strain: f64,
+    /// The axial strain the measurement was due at (a multiple of --every): the x of runs
+    /// averaged together.
+    nominal_strain: f64,
     volumetric_strain: f64,
     height: f64,
     volume: f64,
@@ -620,12 +632,13 @@ struct CsvRow {
 }
 
 impl CsvRow {
-    fn of(m: &Measure) -> CsvRow {
+    fn of(m: &Measure, every: f64) -> CsvRow {
         let [sxx, syy, szz, sxy, sxz, syz] = m.stress;
         CsvRow {
             step: m.step,
             time: m.time,
             axial_strain: m.axial_strain,
+            nominal_strain: (m.axial_strain / every).round() * every,
             volumetric_strain: m.volumetric_strain,
             height: m.height,
             volume: m.volume,

@@ -54,12 +54,15 @@ pub struct Sheet {
     pub ks: f64,
     /// Local damping of the nodes (`None`: the material's, as the bodies).
     pub damping: Option<f64>,
+    /// How deep behind the membrane a body is looked for, m: its contacts are shallow (the
+    /// pressure over the stiffness), so bodies farther in are not tested against it.
+    pub reach: f64,
 }
 
 impl Sheet {
     /// Checks every parameter.
     pub fn check(&self) -> Result<(), MembraneError> {
-        let checks: [(&'static str, f64, bool, &'static str); 7] = [
+        let checks: [(&'static str, f64, bool, &'static str); 8] = [
             (
                 "young",
                 self.young,
@@ -96,6 +99,12 @@ impl Sheet {
                 self.ks,
                 self.ks >= 0.0,
                 "a stiffness of 0 or more in N/m^3",
+            ),
+            (
+                "reach",
+                self.reach,
+                self.reach > 0.0,
+                "a positive depth in m",
             ),
         ];
         if let Some(d) = self.damping {
@@ -680,6 +689,7 @@ mod tests {
             kn: 1e6,
             ks: 5e5,
             damping: None,
+            reach: 1.0,
         }
     }
 

@@ -317,7 +317,10 @@ impl Wall {
                 let mut pieces = Vec::new();
                 let misses =
                     |lo: &Vec3, hi: &Vec3| (0..3).any(|k| lo[k] > b.hi[k] || b.lo[k] > hi[k]);
-                let reach = Vec3::repeat(2.0 * radius);
+                // How deep behind a facet the body is looked for: its width, or for a membrane
+                // (whose contacts are shallow) at most the sheet's reach.
+                let depth = self.prism_depth(radius);
+                let reach = Vec3::repeat(depth);
                 // The triangles whose prisms' boxes may meet the body's (all of them without a
                 // grid), ascending: a superset of those that pass the quick rejects below, so
                 // the same pieces in the same order.
@@ -343,7 +346,7 @@ impl Wall {
                         continue;
                     }
                     let n = n.normalize();
-                    let back = -n * (2.0 * radius);
+                    let back = -n * depth;
                     if misses(&lo.inf(&(lo + back)), &hi.sup(&(hi + back))) {
                         continue;
                     }
@@ -569,6 +572,15 @@ impl Wall {
         hit.map(|h| (h, WallFound::None))
     }
 
+    /// How deep behind its facets a body of bounding radius `radius` is looked for: its width,
+    /// or for a membrane at most the sheet's reach ([`crate::dem::membrane::Sheet::reach`]).
+    pub fn prism_depth(&self, radius: f64) -> f64 {
+        match &self.membrane {
+            Some(m) => (2.0 * radius).min(m.sheet.reach),
+            None => 2.0 * radius,
+        }
+    }
+
     /// Moves the wall by its velocities over `dt`.
     pub fn advance(&mut self, dt: f64) {
         let v = self.velocity;
@@ -683,12 +695,13 @@ impl FacetGrid {
         else {
             return None;
         };
+        let depth = wall.prism_depth(radius);
         let boxes: Vec<(Vec3, Vec3)> = (triangles.iter())
             .map(|t| {
                 let q = t.map(|i| nodes[i as usize]);
                 let (lo, hi) = (q[0].inf(&q[1]).inf(&q[2]), q[0].sup(&q[1]).sup(&q[2]));
                 let n = (q[1] - q[0]).cross(&(q[2] - q[0])).normalize();
-                let back = -n * (2.0 * radius);
+                let back = -n * depth;
                 let (lo, hi) = (lo.inf(&(lo + back)), hi.sup(&(hi + back)));
                 let size = lo.abs().sup(&hi.abs()).max();
                 let pad = Vec3::repeat(1e-9 * radius + 1e-12 * size);

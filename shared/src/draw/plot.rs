@@ -46,6 +46,24 @@ fn register_font() {
     });
 }
 
+/// Pictures of one height side by side, left to right, as one picture.
+pub fn side_by_side(images: &[Image]) -> Image {
+    let height = images.iter().map(|i| i.height).max().unwrap_or(0);
+    let width: u32 = images.iter().map(|i| i.width).sum();
+    let mut rgb = vec![255u8; (width * height * 3) as usize];
+    let mut left = 0;
+    for img in images {
+        for y in 0..img.height {
+            let from = (y * img.width * 3) as usize;
+            let to = ((y * width + left) * 3) as usize;
+            let row = (img.width * 3) as usize;
+            rgb[to..to + row].copy_from_slice(&img.rgb[from..from + row]);
+        }
+        left += img.width;
+    }
+    Image { width, height, rgb }
+}
+
 /// Draws the chart into a `width` x `height` picture.
 pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
     register_font();

@@ -406,6 +406,7 @@ impl Triax {
             kn: stiffness,
             ks: 0.5 * stiffness,
             damping: Some(params.membrane_damping),
+            reach: 0.5 * smallest,
         };
         let mut membrane = Membrane::new(
             sheet,
@@ -819,7 +820,7 @@ pub struct Summary {
     pub e50: f64,
     /// `(1 - d eps_v / d eps_a) / 2`, the slope fitted (least squares) over the measurements
     /// up to `eps_50`.
-    pub poisson: f64,
+    pub poisson_ratio: f64,
     /// Peak friction angle, degrees: `sin phi = (s1 - s3) / (s1 + s3)` at the peak.
     pub friction_angle: f64,
     /// Dilatancy angle, degrees: `sin psi = -(d eps_v / d eps_a) / (2 - d eps_v / d eps_a)` at
@@ -902,7 +903,7 @@ pub fn summarize(series: &[Measure]) -> Option<Summary> {
         peak_q: top.q_boundary,
         peak_strain: top.axial_strain,
         e50: if eps50 > 0.0 { half / eps50 } else { f64::NAN },
-        poisson: nu,
+        poisson_ratio: nu,
         friction_angle: degrees((top.sigma1 - top.sigma3) / (top.sigma1 + top.sigma3)),
         dilatancy_angle: degrees(-rate / (2.0 - rate)),
         dilatancy_strain: at,

@@ -199,6 +199,7 @@ pub struct MembraneRecord {
     /// The nodes' local damping, when not the material's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub damping: Option<f64>,
+    pub reach: f64,
     pub sealed: bool,
     pub pins: Vec<[u32; 2]>,
     /// The walls that guide the nodes not pinned (`[bottom, top]`), if any.
@@ -219,6 +220,7 @@ impl MembraneRecord {
             kn: s.kn,
             ks: s.ks,
             damping: s.damping,
+            reach: s.reach,
             sealed: m.sealed,
             pins: m.pins.iter().map(|p| [p.node, p.wall]).collect(),
             guide: m.guide.map(|g| [g.bottom, g.top]),
@@ -249,6 +251,7 @@ impl MembraneRecord {
             kn: self.kn,
             ks: self.ks,
             damping: self.damping,
+            reach: self.reach,
         };
         Membrane::new(
             sheet,
@@ -761,6 +764,12 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
     Ok(world)
 }
 
+/// The number of records (lines) [`write_world`] writes for `world`.
+pub fn record_count(world: &World) -> usize {
+    // Header, material, clock, shapes, bodies, walls, contacts, energy.
+    3 + world.shapes.len() + world.bodies.len() + world.walls.len() + world.contacts.len() + 1
+}
+
 /// The record types of a state (besides its header).
 const STATE_RECORDS: [&str; 7] = [
     "material", "clock", "shape", "body", "wall", "contact", "energy",
@@ -785,8 +794,8 @@ pub enum Item {
     /// A record of another format between states (e.g. a procedure's settings or
     /// measurements), with its line number.
     Record(serde_json::Value, usize),
-    /// A complete state, with the line number of its header.
-    State(Box<World>, usize),
+    /// A state, with the line number of its header and its number of records.
+    State(Box<World>, usize, usize),
 }
 
 /// Reads a stream of JSON lines that holds several states, each a header and its records as
@@ -858,9 +867,13 @@ impl<R: BufRead> Iterator for StateStream<R> {
             }
             // The state: its header and every state record after it.
             let mut body = text;
+            let mut records = 1;
             while let Some((text, m)) = self.next_line()? {
                 match record_type(&text) {
-                    Some(t) if STATE_RECORDS.contains(&t.as_str()) => body.push_str(&text),
+                    Some(t) if STATE_RECORDS.contains(&t.as_str()) => {
+                        body.push_str(&text);
+                        records += 1;
+                    }
                     _ => {
                         self.ahead = Some((text, m));
                         break;
@@ -871,7 +884,7 @@ impl<R: BufRead> Iterator for StateStream<R> {
                 StateError::Line { line, msg } => at(line + n - 1, msg),
                 e => e,
             })?;
-            Ok(Some(Item::State(Box::new(world), n)))
+            Ok(Some(Item::State(Box::new(world), n, records)))
         })();
         match item {
             Ok(Some(item)) => Some(Ok(item)),

@@ -1,0 +1,204 @@
+//! The `triax` tool: the quick pipe polygen | pack | triax, a resumed run equal to the whole
+//! one, 1 and 2 threads, and broken input and options.
+
+use super::{fails, fixture, ok, repo_file, run_env};
+
+/// A small pack specimen (36 particles of 12-18 mm in a 70 x 140 mm cylinder), made once.
+fn specimen() -> &'static [u8] {
+    static SPEC: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    SPEC.get_or_init(|| {
+        let nine = fixture("templates_seed7.obj");
+        ok(
+            "pack",
+            &[
+                "--count",
+                "36",
+                "--diameter",
+                "0.07",
+                "--height",
+                "0.14",
+                "--size-min",
+                "0.012",
+                "--size-max",
+                "0.018",
+                "--seed",
+                "3",
+                "--every",
+                "100000",
+            ],
+            &nine,
+        )
+    })
+}
+
+/// The options of the tests' short test: 2 % of axial strain, fast.
+const SHORT: [&str; 8] = [
+    "--final-strain",
+    "0.02",
+    "--rate",
+    "2",
+    "--every",
+    "0.002",
+    "--frame-every",
+    "0.01",
+];
+
+fn records(stream: &[u8]) -> Vec<serde_json::Value> {
+    String::from_utf8_lossy(stream)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect()
+}
+
+/// The pipe of the README: polygen | pack | triax, with its stream, summary and table: the
+/// settings first, a measurement every 0.2 % from 0 to 2 %, frames (complete dem states) at
+/// 0, 1 and 2 %, the last line the end of a state; q rises from about zero, and any frame
+/// runs on in dem.
+#[test]
+fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
+    let dir = std::env::temp_dir().join(format!("triax-e2e-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (summary, csv) = (dir.join("s.json"), dir.join("m.csv"));
+    let mut args = SHORT.to_vec();
+    args.extend([
+        "--summary",
+        summary.to_str().unwrap(),
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    let out = ok("triax", &args, specimen());
+    let recs = records(&out);
+    assert_eq!(recs[0]["type"], "triax");
+    assert_eq!(recs[0]["format"], "granular-triax");
+    let measures: Vec<&serde_json::Value> =
+        recs.iter().filter(|r| r["type"] == "measure").collect();
+    assert_eq!(measures.len(), 11, "a measurement every 0.2 % to 2 %");
+    let q: Vec<f64> = measures
+        .iter()
+        .map(|m| m["q_boundary"].as_f64().unwrap())
+        .collect();
+    assert!(q[0].abs() < 0.05 * 1e5, "q at the start {}", q[0]);
+    assert!(q.iter().skip(1).all(|q| *q > 1e4), "q under load {q:?}");
+    for m in &measures {
+        let p = m["p"].as_f64().unwrap();
+        assert!(p > 5e4 && p < 3e5, "contact p {p}");
+        assert!(m["coordination"].as_f64().unwrap() > 0.0);
+    }
+    let frames: Vec<&serde_json::Value> = recs.iter().filter(|r| r["type"] == "frame").collect();
+    assert_eq!(frames.len(), 3, "frames at 0, 1 and 2 %");
+    assert_eq!(
+        recs.last().unwrap()["type"],
+        "energy",
+        "the stream ends with a whole state"
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    for key in [
+        "peak_q",
+        "e50",
+        "poisson_ratio",
+        "friction_angle",
+        "dilatancy_angle",
+    ] {
+        assert!(s[key].as_f64().is_some_and(f64::is_finite), "{key}: {s}");
+    }
+    let table = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(table.lines().count(), 12);
+    // The last frame is a dem state with the membrane: dem runs on from it.
+    let later = ok("dem", &["--frame", "last", "--steps", "20"], &out);
+    assert!(String::from_utf8_lossy(&later).contains("\"membrane\""));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A run stopped at a frame and resumed from its stream writes, together, the bytes of the
+/// run in one go; 1 and 2 threads write the same bytes.
+#[test]
+fn a_resumed_test_and_any_thread_count_give_the_same_bytes() {
+    let whole = ok("triax", &SHORT, specimen());
+    let mut stop = SHORT.to_vec();
+    stop.extend(["--stop-at", "0.01"]);
+    let part = ok("triax", &stop, specimen());
+    assert!(part.len() < whole.len());
+    let rest = ok("triax", &[], &part);
+    let mut joined = part.clone();
+    joined.extend(&rest);
+    assert!(
+        joined == whole,
+        "stopped and resumed differs from the run in one go"
+    );
+    // Resuming a finished stream does nothing.
+    assert!(ok("triax", &[], &whole).is_empty());
+    let one = run_env("triax", &SHORT, specimen(), &[("RAYON_NUM_THREADS", "1")]);
+    assert!(one.status.success());
+    assert!(one.stdout == whole, "1 thread differs from 2");
+}
+
+/// Bad input and options: a clear message, exit 1 (2 for bad usage), nothing written.
+#[test]
+fn triax_rejects_what_is_not_a_cylindrical_specimen_and_nonsense_options() {
+    let rejects = |args: &[&str], stdin: &[u8], code: i32, needles: &[&str]| {
+        let out = fails("triax", args, stdin, code, needles);
+        assert!(out.is_empty(), "triax {args:?} wrote output on failure");
+    };
+    rejects(&[], b"", 1, &["empty"]);
+    rejects(&[], b"o cube\nv 0 0 0\n", 1, &["line 1"]);
+    // A dem scene that is no pack specimen: six bodies over a floor.
+    rejects(
+        &[],
+        &repo_file("examples/drop.jsonl"),
+        1,
+        &["not a pack specimen"],
+    );
+    // A specimen in a box.
+    let nine = fixture("templates_seed7.obj");
+    let boxed = ok(
+        "pack",
+        &[
+            "--container",
+            "box",
+            "--count",
+            "18",
+            "--width",
+            "0.07",
+            "--depth",
+            "0.07",
+            "--height",
+            "0.1",
+            "--size-min",
+            "0.012",
+            "--size-max",
+            "0.016",
+        ],
+        &nine,
+    );
+    rejects(&[], &boxed, 1, &["not a pack specimen", "a box"]);
+    for (flag, value) in [
+        ("--pressure", "-1e5"),
+        ("--final-strain", "1"),
+        ("--final-strain", "0"),
+        ("--rate", "0"),
+        ("--every", "nan"),
+        ("--membrane-young", "0"),
+        ("--membrane-poisson", "0.6"),
+        ("--safety", "2"),
+        ("--stop-at", "-1"),
+    ] {
+        rejects(&[flag, value], specimen(), 2, &[flag]);
+    }
+    rejects(&["--rate", "fast"], specimen(), 2, &["invalid value"]);
+    rejects(
+        &["--summary", "/nonexistent/dir/s.json"],
+        specimen(),
+        1,
+        &["--summary", "does not exist"],
+    );
+    // A truncated stream: its last frame cut short.
+    let whole = ok("triax", &SHORT, specimen());
+    let text = String::from_utf8_lossy(&whole);
+    let cut = text.rfind("{\"type\":\"energy\"").unwrap();
+    let (head, _) = text.split_at(cut);
+    let head = &head[..head.trim_end().rfind('\n').unwrap()];
+    rejects(&[], head.as_bytes(), 1, &["truncated"]);
+    // Cut in the middle of a line.
+    rejects(&[], &whole[..whole.len() - 40], 1, &["line"]);
+}
