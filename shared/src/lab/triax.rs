@@ -406,7 +406,7 @@ impl Triax {
             kn: stiffness,
             ks: 0.5 * stiffness,
             damping: Some(params.membrane_damping),
-            reach: 0.5 * smallest,
+            reach: smallest,
         };
         let mut membrane = Membrane::new(
             sheet,
@@ -676,6 +676,36 @@ impl Triax {
         }
     }
 
+    /// The platens' servo law: PFC's, to the pressure, each platen on its own.
+    fn platen_law(&self) -> ServoLaw {
+        let p = &self.params;
+        ServoLaw {
+            pressure: p.pressure,
+            gain: p.gain,
+            max_strain_rate: p.max_strain_rate,
+            loose_strain_rate: p.max_strain_rate,
+            integral_steps: 0,
+            tolerance: p.tolerance,
+        }
+    }
+
+    /// One step with the platens following their servo to the pressure.
+    fn servo_step(&mut self, law: &ServoLaw) {
+        let (stresses, counts) = self.platen_stresses();
+        let [zb, zt] = self.platens();
+        let half = 0.5 * (zt - zb);
+        let geometry: Vec<WallGeometry> = (0..2)
+            .map(|k| WallGeometry {
+                area: self.end_area(k),
+                half,
+                weight: 0.5,
+            })
+            .collect();
+        let speeds = servo(&self.world, law, &geometry, &stresses, &counts, None);
+        set_speeds(&mut self.world, &speeds);
+        self.world.step();
+    }
+
     /// Step 2: the platens servo to the pressure while the membrane holds it, until both are
     /// within the tolerance and the specimen is in equilibrium; the platens then stop.
     /// `report` sees the progress every `every_steps`.
@@ -684,18 +714,10 @@ impl Triax {
         every_steps: u64,
         report: &mut (impl FnMut(Event) + Send),
     ) -> Result<(), TriaxError> {
-        let p = &self.params;
-        let law = ServoLaw {
-            pressure: p.pressure,
-            gain: p.gain,
-            max_strain_rate: p.max_strain_rate,
-            loose_strain_rate: p.max_strain_rate,
-            integral_steps: 0,
-            tolerance: p.tolerance,
-        };
+        let law = self.platen_law();
         let start = self.world.step;
         let outcome = on_pool(|| loop {
-            let (stresses, counts) = self.platen_stresses();
+            let (stresses, _) = self.platen_stresses();
             let done = stresses.iter().all(|s| {
                 (s - self.params.pressure).abs() <= self.params.tolerance * self.params.pressure
             }) && self.world.unbalanced < self.params.unbalanced;
@@ -714,18 +736,7 @@ impl Triax {
                     unbalanced: self.world.unbalanced,
                 });
             }
-            let [zb, zt] = self.platens();
-            let half = 0.5 * (zt - zb);
-            let geometry: Vec<WallGeometry> = (0..2)
-                .map(|k| WallGeometry {
-                    area: self.end_area(k),
-                    half,
-                    weight: 0.5,
-                })
-                .collect();
-            let speeds = servo(&self.world, &law, &geometry, &stresses, &counts, None);
-            set_speeds(&mut self.world, &speeds);
-            self.world.step();
+            self.servo_step(&law);
         });
         set_speeds(&mut self.world, &[0.0, 0.0]);
         outcome?;
@@ -739,6 +750,14 @@ impl Triax {
             start_step: self.world.step,
         };
         Ok(())
+    }
+
+    /// `steps` steps of the consolidation's hold: the platens on their servo to the pressure,
+    /// the membrane at it, no loading (the hydrostatic hold's test).
+    pub fn hold(&mut self, steps: u64) {
+        let law = self.platen_law();
+        on_pool(|| (0..steps).for_each(|_| self.servo_step(&law)));
+        set_speeds(&mut self.world, &[0.0, 0.0]);
     }
 
     /// Step 3: loading from where the progress is to `final_strain` (or `stop_at`, if lower:
