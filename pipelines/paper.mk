@@ -1,4 +1,4 @@
-# The paper's scale: specimens of 300 x 600 mm (2259 particles of 10-40 mm) at relative density
+# The paper's scale (`make paper`): specimens of 300 x 600 mm (2259 particles of 10-40 mm) at relative density
 # 0.8 against the void-ratio limits in pipelines/limits.csv, for the four groups and several
 # seeds (`PAPER_SEEDS`, default 1 2 3). Each specimen is an independent target: `make -j N
 # paper` runs N at once, and a cluster runs one target per job (docs/GUIDE.md).
@@ -20,3 +20,39 @@ $(PAPER)/%.spec.jsonl: $(OUT)/group-$$(word 1,$$(subst -, ,$$*)).obj
 	  --void-ratio-limits $(call limits,$(word 1,$(subst -, ,$*))) --every 20000 \
 	  --summary $(PAPER)/$*.spec.json < $< > $@.part 2> $(PAPER)/$*.spec.log
 	mv $@.part $@
+
+# The triaxial test of each specimen, and the paper's figures 9-12 with every group's curve the
+# mean over its seeds and a band from the smallest to the largest (out/paper/fig*.png).
+.SECONDARY: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)
+
+$(PAPER)/%.triax.jsonl: $(PAPER)/%.spec.jsonl
+	triax $(TRIAX) --quiet --summary $(PAPER)/$*.triax.json --csv $(PAPER)/$*.triax.csv \
+	  --obj $(PAPER)/$*.triax.obj --obj-group $* < $< > $@.part 2> $(PAPER)/$*.triax.log
+	mv $@.part $@
+
+paper-runs: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)
+
+group_name = $(subst ip,I_P,$(subst ab,Ab_,$(1)))
+$(PAPER)/all.csv: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)
+	( head -n 1 $(PAPER)/$(firstword $(PAPER_RUNS)).triax.csv | sed 's/^/group,seed,/' ; \
+	  $(foreach r,$(PAPER_RUNS),tail -n +2 $(PAPER)/$(r).triax.csv | \
+	    sed 's/^/$(call group_name,$(word 1,$(subst -, ,$(r)))),$(word 2,$(subst -, ,$(r))),/' ;) ) > $@
+
+$(PAPER)/summary.csv: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)
+	( echo "group,seed,level,e50_mpa,poisson,friction_angle,dilatancy_angle,peak_q_kpa,peak_strain,final_volumetric_strain,steps,wall_clock" ; \
+	  $(foreach r,$(PAPER_RUNS),f=$(PAPER)/$(r).triax.json; \
+	    echo "$(call group_name,$(word 1,$(subst -, ,$(r)))),$(word 2,$(subst -, ,$(r))),$(LEVEL_$(word 1,$(subst -, ,$(r)))),$$(awk "BEGIN{print $$($(call summary_field,$$f,e50))/1e6}"),$$($(call summary_field,$$f,poisson_ratio)),$$($(call summary_field,$$f,friction_angle)),$$($(call summary_field,$$f,dilatancy_angle)),$$(awk "BEGIN{print $$($(call summary_field,$$f,peak_q))/1e3}"),$$($(call summary_field,$$f,peak_strain)),$$($(call summary_field,$$f,final_volumetric_strain)),$$($(call summary_field,$$f,steps)),$$($(call summary_field,$$f,wall_clock))" ;) ) > $@
+
+paper: $(PAPER)/all.csv $(PAPER)/summary.csv
+	plot --x nominal_strain --y q_boundary --series group --stats --band minmax \
+	  --stats-out $(PAPER)/fig9.csv --xlabel "axial strain ln(H0/H)" --ylabel "q = s1 - s3 (Pa)" \
+	  --title "Fig. 9 at the paper's scale: mean over seeds, band min-max" < $(PAPER)/all.csv > $(PAPER)/fig9.png
+	plot --x nominal_strain --y volumetric_strain --series group --stats --band minmax \
+	  --stats-out $(PAPER)/fig10.csv --xlabel "axial strain ln(H0/H)" --ylabel "volumetric strain ln(V0/V)" \
+	  --title "Fig. 10 at the paper's scale: mean over seeds, band min-max" < $(PAPER)/all.csv > $(PAPER)/fig10.png
+	plot --x level --y e50_mpa,poisson --stats --band minmax --size 1200x500 \
+	  --xlabel "abrasion level (0: I_P)" --ylabel "E50 (MPa),Poisson's ratio" \
+	  --title "Fig. 11 at the paper's scale" < $(PAPER)/summary.csv > $(PAPER)/fig11.png
+	plot --x level --y friction_angle,dilatancy_angle --stats --band minmax --size 1200x500 \
+	  --xlabel "abrasion level (0: I_P)" --ylabel "peak friction angle (deg),dilatancy angle (deg)" \
+	  --title "Fig. 12 at the paper's scale" < $(PAPER)/summary.csv > $(PAPER)/fig12.png

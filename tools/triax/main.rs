@@ -76,7 +76,8 @@ struct Cli {
     /// rubber's)
     #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
     membrane_damping: f64,
-    /// Keep the bodies' true inertia (slower: the smallest particle sets the time step)
+    /// Keep the bodies' true inertia (slower: the smallest particle sets the time step); when
+    /// resuming a stream, load on from its last frame with the true inertia
     #[arg(long)]
     no_inertia_scaling: bool,
     /// Time step over the critical one
@@ -471,7 +472,16 @@ fn run(args: Cli) -> anyhow::Result<()> {
                     progress.phase
                 );
             }
-            let test = Triax::resume(world, params, progress).map_err(flagged)?;
+            let mut test = Triax::resume(world, params, progress).map_err(flagged)?;
+            if args.no_inertia_scaling && test.params.inertia_scaling {
+                // Loading on from here with the true inertia (the rate table's comparison).
+                test.params.inertia_scaling = false;
+                shared::lab::inertia::restore_inertia(&mut test.world, test.params.safety);
+                say(format!(
+                    "true inertia from here on: time step {:.4e} s",
+                    test.world.dt
+                ));
+            }
             say(format!(
                 "resuming at step {} (axial strain {:.4}) with the stream's settings",
                 test.world.step,
