@@ -46,6 +46,31 @@ fn register_font() {
     });
 }
 
+/// A tick label: six significant digits at most, without trailing zeros (`0.12`, not
+/// `0.12000000000000001`), in exponent form beyond 1e5 or below 1e-3.
+fn tick(x: f64) -> String {
+    let trim = |s: String| {
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    };
+    let a = x.abs();
+    if a == 0.0 {
+        "0".into()
+    } else if !(1e-3..1e5).contains(&a) {
+        let s = format!("{x:.3e}");
+        match s.split_once('e') {
+            Some((m, e)) => format!("{}e{e}", trim(m.to_string())),
+            None => s,
+        }
+    } else {
+        let decimals = (5 - a.log10().floor() as i32).clamp(0, 8) as usize;
+        trim(format!("{x:.decimals$}"))
+    }
+}
+
 /// Pictures of one height side by side, left to right, as one picture.
 pub fn side_by_side(images: &[Image]) -> Image {
     let height = images.iter().map(|i| i.height).max().unwrap_or(0);
@@ -111,11 +136,13 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
             if integer_x {
                 format!("{x:.0}")
             } else {
-                format!("{x}")
+                tick(*x)
             }
         };
+        let fmt_y = |y: &f64| tick(*y);
         ctx.configure_mesh()
             .x_label_formatter(&fmt_x)
+            .y_label_formatter(&fmt_y)
             .x_desc(&chart.xlabel)
             .y_desc(&chart.ylabel)
             .label_style(("sans-serif", 14))
