@@ -6,7 +6,7 @@
 #   fig11: E50 and Poisson's ratio against the abrasion level; fig12: peak friction and
 #   dilatancy angles; figtriax: the specimens at the end.
 
-TRIAX ?=
+TRIAX ?= --rate 1
 LEVEL_ip := 0
 LEVEL_ab1 := 1
 LEVEL_ab2 := 2

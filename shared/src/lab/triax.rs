@@ -80,7 +80,7 @@ impl Default for Params {
         Params {
             pressure: 1e5,
             final_strain: 0.15,
-            rate: 0.5,
+            rate: 0.25,
             young: 7.8e6,
             poisson: 0.5,
             thickness: 2e-3,
