@@ -75,6 +75,27 @@ pub fn coordination(w: &World) -> (f64, f64) {
     )
 }
 
+/// A contact slides when its friction mobility `|f_t| / (mu f_n)` exceeds this (the paper's
+/// criterion, Fig. 14).
+pub const SLIDING_MOBILITY: f64 = 0.9999;
+
+/// The particle-particle contacts and how many of them slide (mobility above
+/// [`SLIDING_MOBILITY`] with the material's friction `mu`; a contact without normal force
+/// slides if it carries any shear force).
+pub fn sliding(w: &World) -> (usize, usize) {
+    let mu = w.material.friction;
+    let (mut pairs, mut slide) = (0, 0);
+    for (&(partner, _), c) in &w.contacts {
+        if let Partner::Body(_) = partner {
+            pairs += 1;
+            if c.shear.norm() > SLIDING_MOBILITY * mu * c.normal_force {
+                slide += 1;
+            }
+        }
+    }
+    (pairs, slide)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
