@@ -7,9 +7,11 @@ export PATH := $(BIN):$(PATH)
 SHELL := /bin/bash
 .SHELLFLAGS := -o pipefail -ec
 
-.PHONY: all figures build test bench clean paper fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax
+.PHONY: all figures build test bench clean paper fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax \
+  fig13 fig14 fig15 fig16 fig17 fig18
 all: figures
-figures: fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax
+figures: fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax \
+  fig13 fig14 fig15 fig16 fig17 fig18
 
 build:
 	cargo build --release --locked --bins
@@ -22,6 +24,7 @@ include pipelines/specimen.mk
 include pipelines/triax.mk
 include pipelines/bench.mk
 include pipelines/paper.mk
+include pipelines/fabric.mk
 
 test:
 	cargo test --release --locked --workspace

@@ -2,6 +2,7 @@
 
 mod bad_input;
 mod dem;
+mod fabric;
 mod pack;
 mod pipes;
 mod triax;
@@ -26,6 +27,7 @@ pub fn run_env(tool: &str, args: &[&str], stdin: &[u8], env: &[(&str, &str)]) ->
         "dem" => env!("CARGO_BIN_EXE_dem"),
         "pack" => env!("CARGO_BIN_EXE_pack"),
         "triax" => env!("CARGO_BIN_EXE_triax"),
+        "fabric" => env!("CARGO_BIN_EXE_fabric"),
         other => panic!("no tool {other}"),
     };
     let mut child = Command::new(exe)

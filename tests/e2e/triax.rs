@@ -4,7 +4,7 @@
 use super::{fails, fixture, ok, repo_file, run_env};
 
 /// A small pack specimen (36 particles of 12-18 mm in a 70 x 140 mm cylinder), made once.
-fn specimen() -> &'static [u8] {
+pub fn specimen() -> &'static [u8] {
     static SPEC: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
     SPEC.get_or_init(|| {
         let nine = fixture("templates_seed7.obj");
@@ -42,6 +42,12 @@ const SHORT: [&str; 8] = [
     "--frame-every",
     "0.01",
 ];
+
+/// The short test's stream, run once.
+pub fn short_stream() -> &'static [u8] {
+    static STREAM: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    STREAM.get_or_init(|| ok("triax", &SHORT, specimen()))
+}
 
 fn records(stream: &[u8]) -> Vec<serde_json::Value> {
     String::from_utf8_lossy(stream)
@@ -114,7 +120,7 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
 /// run in one go; 1 and 2 threads write the same bytes.
 #[test]
 fn a_resumed_test_and_any_thread_count_give_the_same_bytes() {
-    let whole = ok("triax", &SHORT, specimen());
+    let whole = short_stream().to_vec();
     let mut stop = SHORT.to_vec();
     stop.extend(["--stop-at", "0.01"]);
     let part = ok("triax", &stop, specimen());
@@ -193,7 +199,7 @@ fn triax_rejects_what_is_not_a_cylindrical_specimen_and_nonsense_options() {
         &["--summary", "does not exist"],
     );
     // A truncated stream: its last frame cut short.
-    let whole = ok("triax", &SHORT, specimen());
+    let whole = short_stream().to_vec();
     let text = String::from_utf8_lossy(&whole);
     let cut = text.rfind("{\"type\":\"energy\"").unwrap();
     let (head, _) = text.split_at(cut);

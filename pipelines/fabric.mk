@@ -1,0 +1,51 @@
+# Figures 13-18 of the paper: the micro-mechanics of the triaxial tests (fig9's runs), from
+# every frame of their streams (every 0.5 % of axial strain).
+#   fig13: coordination; fig14: sliding ratio; fig15: mean particle rotation; fig16: roses of
+#   the normal contact force at the start, at peak q and at the end; fig17: the anisotropies;
+#   fig18: the stress ratio from the anisotropies (Eq. 19), the contacts (Eq. 9) and the
+#   boundary (Eq. 20).
+
+# Quick specimens have about 600 contacts: 5 bands (50 bins) keep a few per bin.
+FABRIC ?= --rose-bands 5
+
+.SECONDARY: $(foreach g,$(GROUPS),$(OUT)/fabric-$(g).csv)
+
+$(OUT)/fabric-%.csv: $(OUT)/triax-%.jsonl
+	fabric --quiet --roses $(OUT)/fabric-$*-roses.csv --rose-obj $(OUT)/fabric-$*-roses.obj \
+	  --group $(call group_name,$*) $(FABRIC) < $< > $@.part
+	mv $@.part $@
+
+$(OUT)/fabric-all.csv: $(foreach g,$(GROUPS),$(OUT)/fabric-$(g).csv)
+	( head -n 1 $(OUT)/fabric-ip.csv | sed 's/^/group,/' ; \
+	  $(foreach g,$(GROUPS),tail -n +2 $(OUT)/fabric-$(g).csv | sed 's/^/$(call group_name,$(g)),/' ;) ) > $@
+
+fig13: $(OUT)/fabric-all.csv
+	plot --x axial_strain --y coordination,mechanical_coordination --series group --size 1200x500 \
+	  --xlabel "axial strain ln(H0/H)" --ylabel "coordination 2Nc/Np,without rattlers" \
+	  --title "Fig. 13: coordination number during loading" < $< > $(OUT)/fig13.png
+
+fig14: $(OUT)/fabric-all.csv
+	plot --x axial_strain --y sliding_ratio --series group --xlabel "axial strain ln(H0/H)" \
+	  --ylabel "sliding ratio Sp (mobility > 0.9999)" \
+	  --title "Fig. 14: sliding contacts during loading" < $< > $(OUT)/fig14.png
+
+fig15: $(OUT)/fabric-all.csv
+	plot --x axial_strain --y rotation,rotation_accumulated --series group --size 1200x500 \
+	  --xlabel "axial strain ln(H0/H)" --ylabel "mean rotation (rad),accumulated (rad)" \
+	  --title "Fig. 15: mean particle rotation since the start of loading" < $< > $(OUT)/fig15.png
+
+fig16: $(foreach g,$(GROUPS),$(OUT)/fabric-$(g).csv)
+	cat $(foreach g,$(GROUPS),$(OUT)/fabric-$(g)-roses.obj) | render --cols 3 --same-scale \
+	  --size 1200x1500 --no-edges --elevation 15 \
+	  --title "Fig. 16: normal contact force per direction (z up: the loading axis)" > $(OUT)/fig16.png
+
+fig17: $(OUT)/fabric-all.csv
+	plot --x axial_strain --y a_c,a_bn,a_fn,a_ft --series group --size 1600x500 \
+	  --xlabel "axial strain ln(H0/H)" --ylabel "a_c (normals),a_bn (branch),a_fn (normal force),a_ft (shear force)" \
+	  --title "Fig. 17: anisotropies during loading" < $< > $(OUT)/fig17.png
+
+fig18: $(OUT)/fabric-all.csv
+	plot --x axial_strain --y ratio_anisotropy,ratio_contacts,ratio_boundary --series group \
+	  --size 1500x500 --xlabel "axial strain ln(H0/H)" \
+	  --ylabel "q/p from anisotropy (Eq. 19),q/p from contacts (Eq. 9),q/p from boundary (Eq. 20)" \
+	  --title "Fig. 18: stress ratios during loading" < $< > $(OUT)/fig18.png
