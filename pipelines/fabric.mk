@@ -49,3 +49,46 @@ fig18: $(OUT)/fabric-all.csv
 	  --size 1500x500 --xlabel "axial strain ln(H0/H)" \
 	  --ylabel "q/p from anisotropy (Eq. 19),q/p from contacts (Eq. 9),q/p from boundary (Eq. 20)" \
 	  --title "Fig. 18: stress ratios during loading" < $< > $(OUT)/fig18.png
+
+# The paper's scale: the fabric of every run of `make paper`, figures 13-18 with each group's
+# curve the mean over its seeds and a band from the smallest to the largest
+# (out/paper/fig13.png ...), and the roses of each group's first seed.
+.SECONDARY: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).fabric.csv)
+
+$(PAPER)/%.fabric.csv: $(PAPER)/%.triax.jsonl
+	fabric --quiet --roses $(PAPER)/$*.roses.csv --rose-obj $(PAPER)/$*.roses.obj \
+	  --group $(call group_name,$(word 1,$(subst -, ,$*)))-$(word 2,$(subst -, ,$*)) < $< > $@.part
+	mv $@.part $@
+
+# The runs' rows with group, seed and the frame's nominal strain (a multiple of 0.5 %), so
+# that the seeds' rows meet at the same x.
+$(PAPER)/fabric-all.csv: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).fabric.csv)
+	( head -n 1 $(PAPER)/$(firstword $(PAPER_RUNS)).fabric.csv | sed 's/^/group,seed,nominal_strain,/' ; \
+	  $(foreach r,$(PAPER_RUNS),tail -n +2 $(PAPER)/$(r).fabric.csv | \
+	    awk -F, -v OFS=, '{ printf "%s,%s,%.3f,%s\n", "$(call group_name,$(word 1,$(subst -, ,$(r))))", \
+	      "$(word 2,$(subst -, ,$(r)))", int($$5 / 0.005 + 0.5) * 0.005, $$0 }' ;) ) > $@
+
+paper-fabric: $(PAPER)/fabric-all.csv
+	plot --x nominal_strain --y coordination,mechanical_coordination --series group --stats --band minmax \
+	  --size 1200x500 --xlabel "axial strain ln(H0/H)" --ylabel "coordination 2Nc/Np,without rattlers" \
+	  --title "Fig. 13 at the paper's scale: mean over seeds, band min-max" < $< > $(PAPER)/fig13.png
+	plot --x nominal_strain --y sliding_ratio --series group --stats --band minmax \
+	  --xlabel "axial strain ln(H0/H)" --ylabel "sliding ratio Sp (mobility > 0.9999)" \
+	  --title "Fig. 14 at the paper's scale" < $< > $(PAPER)/fig14.png
+	plot --x nominal_strain --y rotation,rotation_accumulated --series group --stats --band minmax \
+	  --size 1200x500 --xlabel "axial strain ln(H0/H)" --ylabel "mean rotation (rad),accumulated (rad)" \
+	  --title "Fig. 15 at the paper's scale" < $< > $(PAPER)/fig15.png
+	cat $(foreach g,$(GROUPS),$(PAPER)/$(g)-$(firstword $(PAPER_SEEDS)).roses.obj) | render --cols 3 \
+	  --same-scale --size 1200x1500 --no-edges --elevation 15 \
+	  --title "Fig. 16 at the paper's scale: normal contact force per direction (z: loading axis)" \
+	  > $(PAPER)/fig16.png
+	plot --x nominal_strain --y a_c,a_bn,a_fn,a_ft --series group --stats --band minmax --size 1600x500 \
+	  --xlabel "axial strain ln(H0/H)" --ylabel "a_c (normals),a_bn (branch),a_fn (normal force),a_ft (shear force)" \
+	  --title "Fig. 17 at the paper's scale" < $< > $(PAPER)/fig17.png
+	plot --x nominal_strain --y ratio_anisotropy,ratio_contacts,ratio_boundary --series group --stats \
+	  --band minmax --size 1500x500 --xlabel "axial strain ln(H0/H)" \
+	  --ylabel "q/p from anisotropy (Eq. 19),q/p from contacts (Eq. 9),q/p from boundary (Eq. 20)" \
+	  --title "Fig. 18 at the paper's scale" < $< > $(PAPER)/fig18.png
+
+paper: paper-fabric
+.PHONY: paper-fabric

@@ -175,7 +175,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let mut table = if args.json {
         Table::Json(out)
     } else {
-        Table::Csv(csv::Writer::from_writer(out))
+        Table::Csv(Box::new(csv::Writer::from_writer(out)))
     };
     let result = rows(&args, &mut table);
     let kept = match result {
@@ -245,7 +245,7 @@ struct RoseRow {
 }
 
 enum Table {
-    Csv(csv::Writer<std::io::BufWriter<std::io::StdoutLock<'static>>>),
+    Csv(Box<csv::Writer<std::io::BufWriter<std::io::StdoutLock<'static>>>>),
     Json(std::io::BufWriter<std::io::StdoutLock<'static>>),
 }
 
@@ -448,7 +448,7 @@ fn state_row(
         b0: fabric.as_ref().map(|f| f.b0),
         ratio_anisotropy: fabric.as_ref().map(|f| f.ratio(&s)),
         ratio_contacts: if pairs > 0 { ratio(&only_pairs) } else { None },
-        ratio_contacts_walls: if w.contacts.len() > 0 {
+        ratio_contacts_walls: if !w.contacts.is_empty() {
             ratio(&full)
         } else {
             None

@@ -46,8 +46,8 @@ struct Cli {
     /// Axial strain ln(H0 / H) at which loading ends
     #[arg(long, default_value_t = 0.15, allow_negative_numbers = true)]
     final_strain: f64,
-    /// Axial strain rate, 1/s (the default keeps q within about 2 % of the quasi-static
-    /// curve: docs/models/triax.md, the rate table)
+    /// Axial strain rate, 1/s (the default's error in q is about 3 % of peak q against the
+    /// quasi-static curve: docs/models/triax.md, the rate table)
     #[arg(long, default_value_t = 0.25, allow_negative_numbers = true)]
     rate: f64,
     /// Axial strain between measurements
