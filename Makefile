@@ -25,6 +25,7 @@ include pipelines/triax.mk
 include pipelines/bench.mk
 include pipelines/paper.mk
 include pipelines/fabric.mk
+include pipelines/study.mk
 
 test:
 	cargo test --release --locked --workspace

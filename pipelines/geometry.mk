@@ -5,7 +5,9 @@ TEMPLATE_SEED := 7
 STATS_SEED := 11
 STATS_COUNT := 1000
 
-$(OUT)/templates.obj: build | $(OUT)
+# The binaries are built first but do not make the data out of date: a second `make` runs only
+# what is missing (`make clean` starts over).
+$(OUT)/templates.obj: | build $(OUT)
 	polygen --faces 6..14 --seed $(TEMPLATE_SEED) > $@
 
 fig1: build | $(OUT)

@@ -1,0 +1,43 @@
+# The seed study at quick scale (`make study`): the four groups' tests on STUDY_SEEDS specimens
+# each (pack --seed S; seed 1 is the figures' run), and a table of their macro- and
+# micro-mechanical results with each group's mean and standard deviation over the seeds
+# (out/study/table.md; the runs' rows in out/study/runs.csv): how much of a difference between
+# groups is beyond specimen-to-specimen scatter. `make -j 2 study` runs two at a time.
+
+STUDY := $(OUT)/study
+STUDY_SEEDS ?= 1 2 3
+STUDY_RUNS := $(foreach g,$(GROUPS),$(foreach s,$(STUDY_SEEDS),$(g)-$(s)))
+
+.SECONDARY: $(foreach r,$(STUDY_RUNS),$(STUDY)/$(r).spec.jsonl $(STUDY)/$(r).triax.jsonl $(STUDY)/$(r).fabric.csv)
+
+# Seed 1: the figures' run.
+$(STUDY)/%-1.triax.jsonl: $(OUT)/triax-%.jsonl
+	mkdir -p $(STUDY)
+	cp $(OUT)/triax-$*.json $(STUDY)/$*-1.triax.json
+	cp $< $@
+
+$(STUDY)/%.spec.jsonl: $(OUT)/group-$$(word 1,$$(subst -, ,$$*)).obj
+	mkdir -p $(STUDY)
+	pack $(SPECIMEN) --seed $(word 2,$(subst -, ,$*)) --every 50000 \
+	  --summary $(STUDY)/$*.spec.json < $< > $@.part
+	mv $@.part $@
+
+$(STUDY)/%.triax.jsonl: $(STUDY)/%.spec.jsonl
+	triax $(TRIAX) --quiet --summary $(STUDY)/$*.triax.json < $< > $@.part
+	mv $@.part $@
+
+$(STUDY)/%.fabric.csv: $(STUDY)/%.triax.jsonl
+	fabric --quiet < $< > $@.part
+	mv $@.part $@
+
+$(STUDY)/runs.csv: $(foreach r,$(STUDY_RUNS),$(STUDY)/$(r).fabric.csv)
+	( pipelines/study-row.sh --header ; \
+	  $(foreach r,$(STUDY_RUNS),pipelines/study-row.sh $(call group_name,$(word 1,$(subst -, ,$(r)))) \
+	    $(word 2,$(subst -, ,$(r))) $(LEVEL_$(word 1,$(subst -, ,$(r)))) \
+	    $(STUDY)/$(r).triax.json $(STUDY)/$(r).fabric.csv ;) ) > $@
+
+study: $(STUDY)/runs.csv
+	pipelines/study-table.sh $< > $(STUDY)/table.md
+	cat $(STUDY)/table.md
+
+.PHONY: study
