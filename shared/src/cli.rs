@@ -48,10 +48,17 @@ pub fn usage(msg: impl Into<String>) -> anyhow::Error {
     Usage(msg.into()).into()
 }
 
+/// Whether an error is, or wraps, a write into a closed pipe: as an I/O error, or inside the
+/// CSV and JSON writers' errors (which do not expose it as their source).
 fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    let broken = io::ErrorKind::BrokenPipe;
     e.chain().any(|c| {
         c.downcast_ref::<io::Error>()
-            .is_some_and(|io| io.kind() == io::ErrorKind::BrokenPipe)
+            .is_some_and(|io| io.kind() == broken)
+            || c.downcast_ref::<csv::Error>()
+                .is_some_and(|e| matches!(e.kind(), csv::ErrorKind::Io(io) if io.kind() == broken))
+            || c.downcast_ref::<serde_json::Error>()
+                .is_some_and(|e| e.io_error_kind() == Some(broken))
     })
 }
 

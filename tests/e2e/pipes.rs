@@ -142,25 +142,50 @@ fn abrade_streams_before_its_input_ends() {
     assert!(child.wait().unwrap().success());
 }
 
-#[test]
-fn broken_pipe_is_quiet_success() {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_polygen"))
-        .args(["--faces", "6..14", "--count", "3000"])
+/// Runs `exe` with `args` on `input`, reads one line of its output and goes away: the tool
+/// must end quietly with success.
+fn quiet_when_the_reader_goes(exe: &str, args: &[&str], input: Vec<u8>) {
+    let mut child = Command::new(exe)
+        .args(args)
+        .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let writer = std::thread::spawn(move || {
+        let _ = stdin.write_all(&input);
+    });
     let mut first = String::new();
     BufReader::new(child.stdout.take().unwrap())
         .read_line(&mut first)
         .unwrap(); // then drop: reader goes away
     let out = child.wait_with_output().unwrap();
-    assert!(out.status.success(), "exit {:?}", out.status);
+    writer.join().unwrap();
+    assert!(out.status.success(), "{exe} {args:?}: exit {:?}", out.status);
     assert!(
         out.stderr.is_empty(),
-        "{}",
+        "{exe} {args:?}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+#[test]
+fn broken_pipe_is_quiet_success() {
+    quiet_when_the_reader_goes(
+        env!("CARGO_BIN_EXE_polygen"),
+        &["--faces", "6..14", "--count", "3000"],
+        Vec::new(),
+    );
+    // The CSV and JSON writers wrap the pipe's error in their own.
+    let many = super::ok("polygen", &["--faces", "6", "--count", "3000"], b"");
+    for format in ["csv", "jsonl"] {
+        quiet_when_the_reader_goes(
+            env!("CARGO_BIN_EXE_roundness"),
+            &["--format", format],
+            many.clone(),
+        );
+    }
 }
 
 #[test]
