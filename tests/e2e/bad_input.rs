@@ -221,3 +221,33 @@ fn help_shows_an_example_pipe() {
         );
     }
 }
+
+/// A time step that cannot be computed (a stiffness, density or size out of range) is an
+/// input error, not a panic; a step above the critical one is warned about; a run that would
+/// never end is refused.
+#[test]
+fn dem_time_step_out_of_range_is_an_input_error_not_a_panic() {
+    let drop = String::from_utf8(super::repo_file("examples/drop.jsonl")).unwrap();
+    let tiny_density = drop.replace("\"density\":2600,", "\"density\":1e-300,");
+    assert!(tiny_density != drop, "the scene's density is 2600");
+    let tiny_body = drop.replacen("\"scale\":0.008", "\"scale\":1e-300", 1);
+    assert!(tiny_body != drop, "the first body's scale is 0.008");
+    for (args, scene) in [
+        (&["--kn", "1e308", "--steps", "10"][..], &drop),
+        (&["--steps", "3"][..], &tiny_density),
+        (&["--steps", "3"][..], &tiny_body),
+    ] {
+        let out = fails("dem", args, scene.as_bytes(), 1, &["critical time step"]);
+        assert!(out.is_empty(), "nothing written");
+    }
+    let out = super::run("dem", &["--dt", "1", "--steps", "1"], drop.as_bytes());
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("above the critical"));
+    fails(
+        "dem",
+        &["--dt", "1e-300", "--time", "1"],
+        drop.as_bytes(),
+        1,
+        &["more than 1e12"],
+    );
+}

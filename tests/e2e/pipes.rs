@@ -162,7 +162,11 @@ fn quiet_when_the_reader_goes(exe: &str, args: &[&str], input: Vec<u8>) {
         .unwrap(); // then drop: reader goes away
     let out = child.wait_with_output().unwrap();
     writer.join().unwrap();
-    assert!(out.status.success(), "{exe} {args:?}: exit {:?}", out.status);
+    assert!(
+        out.status.success(),
+        "{exe} {args:?}: exit {:?}",
+        out.status
+    );
     assert!(
         out.stderr.is_empty(),
         "{exe} {args:?}: {}",

@@ -189,6 +189,9 @@ fn main() -> ExitCode {
 }
 
 /// State `which` (a number from 1, or `last`) of the stream of states on standard input.
+/// The most steps `--time` may ask for: beyond it a run would not end on any machine.
+const MAX_STEPS: f64 = 1e12;
+
 fn read_frame(which: &str) -> anyhow::Result<World> {
     let wanted = match which {
         "last" => None,
@@ -282,15 +285,31 @@ fn run(args: Cli) -> anyhow::Result<()> {
             bail!("--safety must be in (0, 1], got {}", args.safety);
         }
         let critical = world.critical_dt();
-        world.dt = args.safety * critical;
+        world.dt = world.time_step(args.safety)?;
         eprintln!(
             "dem: time step {:.4e} s = {} x critical {:.4e} s",
             world.dt, args.safety, critical
         );
     }
+    let critical = world.critical_dt();
+    if world.dt > critical {
+        eprintln!(
+            "dem: warning: the time step {:.4e} s is above the critical {critical:.4e} s: the run is unstable",
+            world.dt
+        );
+    }
     let steps = match (args.steps, args.time) {
         (Some(n), _) => n,
-        (None, Some(t)) if t >= 0.0 && t.is_finite() => (t / world.dt).ceil() as u64,
+        (None, Some(t)) if t >= 0.0 && t.is_finite() => {
+            let n = (t / world.dt).ceil();
+            if n > MAX_STEPS {
+                bail!(
+                    "--time {t} s at a time step of {:.4e} s is {n:.3e} steps, more than {MAX_STEPS:e}",
+                    world.dt
+                );
+            }
+            n as u64
+        }
         (None, Some(t)) => bail!("--time must be a non-negative number of seconds, got {t}"),
         (None, None) => bail!("say how far to run: --steps N or --time T"),
     };

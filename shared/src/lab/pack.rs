@@ -176,6 +176,8 @@ impl Default for Params {
 /// Why no specimen.
 #[derive(Debug, Error, PartialEq)]
 pub enum PackError {
+    #[error(transparent)]
+    TimeStep(#[from] crate::dem::world::TimeStepError),
     #[error("no templates (expected an OBJ stream of particle shapes)")]
     NoTemplates,
     /// A parameter out of its range: the [`Params`] field (or the function's argument) and
@@ -424,7 +426,7 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
     if p.inertia_scaling {
         scale_inertia(&mut w);
     }
-    w.dt = p.safety * w.critical_dt();
+    w.dt = w.time_step(p.safety)?;
     Ok(w)
 }
 

@@ -103,6 +103,8 @@ impl Default for Params {
 /// Why no test.
 #[derive(Debug, Error, PartialEq)]
 pub enum TriaxError {
+    #[error(transparent)]
+    TimeStep(#[from] crate::dem::world::TimeStepError),
     /// A parameter out of its range: the [`Params`] field and what it must be.
     #[error("{field} {rule}")]
     Param { field: &'static str, rule: String },
@@ -438,7 +440,7 @@ impl Triax {
         for w in &mut world.walls {
             w.velocity = Vec3::zeros();
         }
-        world.dt = params.safety * world.critical_dt();
+        world.dt = world.time_step(params.safety)?;
         let solid = (world.bodies.iter())
             .map(|b| world.shapes[b.shape as usize].volume * b.scale.powi(3))
             .sum();

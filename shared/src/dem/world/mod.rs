@@ -38,6 +38,19 @@ use crate::math::{cube, pow5, Vec3};
 use nalgebra::UnitQuaternion;
 use step::Buffers;
 
+/// Why a world has no time step ([`World::time_step`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TimeStepError {
+    #[error("no free body or membrane moves, so nothing sets a time step (give one)")]
+    Nothing,
+    #[error("the critical time step is {critical:e} s: the contact stiffness {stiffness:e} N/m against the lightest free body's {lightest:e} kg (and its moments) is out of the range a step can resolve")]
+    OutOfRange {
+        critical: f64,
+        stiffness: f64,
+        lightest: f64,
+    },
+}
+
 /// A rigid body: a scaled shape, its pose and motion. `ang_mom` is the angular momentum about the
 /// centroid in world axes; `rot` turns the shape's principal frame into world axes.
 #[derive(Clone, Debug, PartialEq)]
@@ -376,6 +389,31 @@ impl World {
         (self.critical_dts().iter())
             .map(|&(t, r)| t.min(r))
             .fold(self.membranes_critical_dt(), f64::min)
+    }
+
+    /// The time step `safety x` [`World::critical_dt`], or why there is none: a critical step
+    /// that is zero, not a number or below the smallest normal float (stiffness or inertia
+    /// out of range: `kn = 1e308` overflows the rotation rate), or infinite (no free body or
+    /// membrane moves).
+    pub fn time_step(&self, safety: f64) -> Result<f64, TimeStepError> {
+        let critical = self.critical_dt();
+        let dt = safety * critical;
+        if critical.is_infinite() {
+            return Err(TimeStepError::Nothing);
+        }
+        if !(dt.is_finite() && dt >= f64::MIN_POSITIVE) {
+            let k = self.material.kn.max(self.material.ks);
+            let lightest = (self.bodies.iter())
+                .filter(|b| !b.fixed)
+                .map(|b| b.mass)
+                .fold(f64::INFINITY, f64::min);
+            return Err(TimeStepError::OutOfRange {
+                critical,
+                stiffness: k,
+                lightest,
+            });
+        }
+        Ok(dt)
     }
 
     /// The smallest critical step of the membranes' nodes ([`crate::dem::membrane::Membrane::critical_dt`]), infinite
