@@ -24,10 +24,11 @@
 //!   integrator and the world, parallel loops, and its file formats.
 //! - [`lab`]: procedures that drive the engine as a laboratory would: servo-controlled walls,
 //!   boundary measurements, the consolidated specimen (`pack`).
-//! - [`micro`]: statistics of the contact network (fabric tensors and anisotropy).
+//! - [`micro`]: statistics of the contact network (fabric tensors and anisotropy, the
+//!   stress-force-fabric relation, rotations, roses).
 //! - [`draw`]: shaded pictures of meshes and line charts of tables.
 //! - [`math`]: type aliases and numeric helpers; [`cli`]: what every tool shares (exit codes,
-//!   broken pipes, stream helpers).
+//!   broken pipes, stream helpers); [`text`]: excerpts of input in messages.
 
 pub mod cli;
 pub mod dem;
@@ -36,3 +37,4 @@ pub mod geometry;
 pub mod lab;
 pub mod math;
 pub mod micro;
+pub mod text;

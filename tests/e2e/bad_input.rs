@@ -251,3 +251,55 @@ fn dem_time_step_out_of_range_is_an_input_error_not_a_panic() {
         &["more than 1e12"],
     );
 }
+
+/// The OBJ reader's messages: a byte-order mark is accepted; a vertex with extra values, a
+/// repeated vertex, text that is not UTF-8, a NUL byte and a token of a million characters
+/// each get a short message naming the line.
+#[test]
+fn obj_reader_messages_are_short_and_name_the_line() {
+    let tetra = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    let with_bom = format!("\u{feff}{tetra}");
+    super::ok("roundness", &[], with_bom.as_bytes());
+    let weighted = tetra.replacen("v 0 0 0", "v 0 0 0 1", 1);
+    super::ok("roundness", &[], weighted.as_bytes());
+    fails(
+        "roundness",
+        &[],
+        b"v 0 0 0 2\n",
+        1,
+        &["line 1", "more than x y z"],
+    );
+    fails(
+        "roundness",
+        &[],
+        b"v 0 0 0 1 1 1\n",
+        1,
+        &["line 1", "more than x y z"],
+    );
+    let repeated = tetra.replace("f 1 3 2\n", "f 1 3 2 3\n");
+    fails(
+        "roundness",
+        &[],
+        repeated.as_bytes(),
+        1,
+        &["line 5", "repeats vertex 3"],
+    );
+    fails(
+        "roundness",
+        &[],
+        b"v 0 0 0\n\xff\n",
+        1,
+        &["line 2", "not UTF-8"],
+    );
+    fails("roundness", &[], b"v 0\x00 0 0\n", 1, &["line 1", "\\u{0}"]);
+    let mut long = b"v 0 0 ".to_vec();
+    long.extend(std::iter::repeat_n(b'x', 1_000_000));
+    long.push(b'\n');
+    let out = super::run("roundness", &[], &long);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        out.stderr.len() < 200,
+        "{} bytes of message",
+        out.stderr.len()
+    );
+}

@@ -61,6 +61,12 @@ pub enum MeshError {
         line: Option<u64>,
         count: usize,
     },
+    #[error("face {}{} repeats vertex {}; a face goes round distinct vertices", face + 1, at(*line), vertex + 1)]
+    RepeatedVertex {
+        face: usize,
+        line: Option<u64>,
+        vertex: u32,
+    },
     #[error("face {}{} uses vertex {} which does not exist", face + 1, at(*line), vertex + 1)]
     BadIndex {
         face: usize,
@@ -218,12 +224,20 @@ impl PolyMesh {
             // A face needs three distinct corners and no corner repeated.
             let mut sorted: Vec<u32> = idx.to_vec();
             sorted.sort_unstable();
+            let repeated = sorted.windows(2).find(|w| w[0] == w[1]).map(|w| w[0]);
             sorted.dedup();
-            if sorted.len() < 3 || sorted.len() != idx.len() {
+            if sorted.len() < 3 {
                 return Err(MeshError::DegenerateFace {
                     face: f,
                     line: line(f),
                     count: sorted.len(),
+                });
+            }
+            if let Some(vertex) = repeated {
+                return Err(MeshError::RepeatedVertex {
+                    face: f,
+                    line: line(f),
+                    vertex,
                 });
             }
             for h in self.face_start[f]..self.face_start[f + 1] {

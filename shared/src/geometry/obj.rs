@@ -9,13 +9,15 @@
 //! - `#@ key=value ...` lines inside an object are its attributes; other `#` lines are comments:
 //!   those before the first object are the stream's provenance, passed through by every tool;
 //! - `vt`, `vn`, `vp`, `g`, `s`, `l`, `p`, `usemtl`, `mtllib` are accepted and ignored; a face
-//!   corner `i/t/n` uses `i`.
+//!   corner `i/t/n` uses `i`; a vertex is `v x y z`, with OBJ's optional weight only as 1;
+//!   a UTF-8 byte-order mark may open the stream.
 //!
 //! The reader keeps one object in memory; the writer writes floats in the shortest text that
 //! reads back to the same f64 (ryu), so a mesh round-trips exactly.
 
 use crate::geometry::mesh::PolyMesh;
 use crate::math::Vec3;
+use crate::text::excerpt;
 use std::io::{self, BufRead, Write};
 use thiserror::Error;
 
@@ -85,7 +87,7 @@ impl<R: BufRead> ObjReader<R> {
         let object = self
             .current
             .as_ref()
-            .map_or_else(|| "-".to_string(), |o| o.mesh.name.clone());
+            .map_or_else(|| "-".to_string(), |o| excerpt(&o.mesh.name));
         ObjError::Parse {
             line: self.line_no,
             object,
@@ -115,7 +117,15 @@ impl<R: BufRead> ObjReader<R> {
     fn fill(&mut self) -> Result<(), ObjError> {
         while self.ready.is_empty() && !self.done {
             self.buf.clear();
-            if self.input.read_line(&mut self.buf)? == 0 {
+            let read = self.input.read_line(&mut self.buf).map_err(|e| {
+                if e.kind() == io::ErrorKind::InvalidData {
+                    self.line_no += 1;
+                    self.err("not UTF-8 text")
+                } else {
+                    ObjError::Io(e)
+                }
+            })?;
+            if read == 0 {
                 self.done = true;
                 self.finish_current();
                 break;
@@ -130,6 +140,12 @@ impl<R: BufRead> ObjReader<R> {
     }
 
     fn parse_line(&mut self, line: &str) -> Result<(), ObjError> {
+        // A byte-order mark may open the stream.
+        let line = if self.line_no == 1 {
+            line.strip_prefix('\u{feff}').unwrap_or(line)
+        } else {
+            line
+        };
         let text = line.trim();
         if text.is_empty() {
             return Ok(());
@@ -139,7 +155,11 @@ impl<R: BufRead> ObjReader<R> {
                 for pair in attrs.split_ascii_whitespace() {
                     match pair.split_once('=') {
                         Some((k, v)) if !k.is_empty() => obj.mesh.attrs.set(k, v),
-                        _ => return Err(self.err(format!("attribute '{pair}' is not key=value"))),
+                        _ => {
+                            return Err(
+                                self.err(format!("attribute '{}' is not key=value", excerpt(pair)))
+                            )
+                        }
                     }
                 }
             } else if let Some(obj) = self.current.as_mut() {
@@ -167,13 +187,24 @@ impl<R: BufRead> ObjReader<R> {
                     let tok = tokens
                         .next()
                         .ok_or_else(|| self.err(format!("vertex has {i} coordinates, needs 3")))?;
-                    let x: f64 = tok
-                        .parse()
-                        .map_err(|_| self.err(format!("bad vertex coordinate '{tok}'")))?;
+                    let x: f64 = tok.parse().map_err(|_| {
+                        self.err(format!("bad vertex coordinate '{}'", excerpt(tok)))
+                    })?;
                     if !x.is_finite() {
-                        return Err(self.err(format!("vertex coordinate '{tok}' is not finite")));
+                        return Err(self.err(format!(
+                            "vertex coordinate '{}' is not finite",
+                            excerpt(tok)
+                        )));
                     }
                     *slot = x;
+                }
+                // OBJ's optional weight w, which only a rational curve's vertex changes.
+                let w = tokens.next();
+                if let Some(extra) = w.filter(|w| w.parse::<f64>() != Ok(1.0)).or(tokens.next()) {
+                    return Err(self.err(format!(
+                        "vertex has more than x y z (and a weight of 1): '{}'",
+                        excerpt(extra)
+                    )));
                 }
                 self.current_or_implicit()
                     .mesh
@@ -195,7 +226,7 @@ impl<R: BufRead> ObjReader<R> {
                         Ok(i) if i > 0 => i - 1 - base as i64,
                         Ok(i) if i < 0 => nv + i,
                         _ => {
-                            bad = Some(format!("bad face index '{tok}'"));
+                            bad = Some(format!("bad face index '{}'", excerpt(tok)));
                             break;
                         }
                     };
@@ -233,7 +264,7 @@ impl<R: BufRead> ObjReader<R> {
                 });
             }
             "vt" | "vn" | "vp" | "g" | "s" | "l" | "p" | "usemtl" | "mtllib" => {}
-            other => return Err(self.err(format!("unknown OBJ statement '{other}'"))),
+            other => return Err(self.err(format!("unknown OBJ statement '{}'", excerpt(other)))),
         }
         Ok(())
     }
