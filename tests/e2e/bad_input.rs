@@ -303,3 +303,33 @@ fn obj_reader_messages_are_short_and_name_the_line() {
         out.stderr.len()
     );
 }
+
+/// Requests no machine could serve are refused before any work (exit 2), angles that are not
+/// numbers too, and a plot of values spanning more than a float ends with a message instead
+/// of looping.
+#[test]
+fn impossible_requests_are_refused_before_the_work() {
+    fails(
+        "polygen",
+        &["--faces", "4294967296"],
+        b"",
+        2,
+        &["--max-faces"],
+    );
+    fails(
+        "polygen",
+        &["--faces", "6", "--count", "0"],
+        b"",
+        2,
+        &["--count"],
+    );
+    fails("render", &["--azimuth", "nan"], b"", 2, &["--azimuth"]);
+    fails("render", &["--elevation", "inf"], b"", 2, &["--elevation"]);
+    fails(
+        "plot",
+        &["--x", "x", "--y", "y"],
+        b"x,y\n0,1e308\n1,-1e308\n",
+        1,
+        &["more than a float can hold"],
+    );
+}

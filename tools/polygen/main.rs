@@ -34,6 +34,9 @@ struct Cli {
     /// Polyhedra per face count
     #[arg(long, default_value_t = 1)]
     count: u64,
+    /// The largest face count --faces may ask for
+    #[arg(long, default_value_t = 100_000)]
+    max_faces: usize,
     /// Random seed; same seed, same bytes, on any machine and thread count
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -56,11 +59,19 @@ fn main() -> ExitCode {
 fn run(args: Cli) -> anyhow::Result<()> {
     let (k0, k1) = args.faces;
     if args.count == 0 {
-        anyhow::bail!("--count must be at least 1");
+        return Err(cli::usage("--count must be at least 1"));
     }
-    let jobs: Vec<(usize, u64)> = (k0..=k1)
-        .flat_map(|k| (0..args.count).map(move |i| (k, i)))
-        .collect();
+    if k1 > args.max_faces {
+        return Err(cli::usage(format!(
+            "--faces {k1}: more than --max-faces {} (a polyhedron of k faces takes about 600 k bytes while it is made)",
+            args.max_faces
+        )));
+    }
+    // The jobs in order, made 512 at a time: memory does not grow with --count.
+    let total_jobs = (k1 + 1).saturating_sub(k0) as u128 * args.count as u128;
+    let mut jobs = (k0..=k1).flat_map(|k| (0..args.count).map(move |i| (k, i)));
+    let mut chunk = Vec::with_capacity(512);
+    let mut done = 0u64;
     let mut out = ObjWriter::new(cli::stdout());
     out.comment(&cli::provenance("polygen"))?;
     out.comment(&format!(
@@ -69,7 +80,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
     ))?;
     let mut total = Redraws::default();
     let mut progress = cli::Progress::new("polygen");
-    for (n, chunk) in jobs.chunks(512).enumerate() {
+    loop {
+        chunk.clear();
+        chunk.extend(jobs.by_ref().take(512));
+        if chunk.is_empty() {
+            break;
+        }
         let made: Vec<_> = chunk
             .par_iter()
             .map(|&(k, i)| {
@@ -93,7 +109,8 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 out.object(&p.mesh, &[])?;
             }
         }
-        progress.tick(((n + 1) * 512).min(jobs.len()) as u64, "polyhedra");
+        done += chunk.len() as u64;
+        progress.tick(done, "polyhedra");
     }
     progress.finish();
     out.comment(&format!(
@@ -102,7 +119,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         total.unbounded,
         total.degenerate,
         total.elongated,
-        jobs.len()
+        total_jobs
     ))?;
     out.into_inner()?.flush()?;
     Ok(())

@@ -61,6 +61,13 @@ fn main() -> ExitCode {
 }
 
 fn run(args: Cli) -> anyhow::Result<()> {
+    for (name, angle) in [("--azimuth", args.azimuth), ("--elevation", args.elevation)] {
+        if !angle.is_finite() {
+            return Err(cli::usage(format!(
+                "{name} {angle}: must be a finite angle in degrees"
+            )));
+        }
+    }
     let objects = obj::read_all(cli::stdin())?;
     cli::require_objects(objects.len() as u64)?;
     let meshes = objects.into_iter().map(|o| o.mesh).collect();

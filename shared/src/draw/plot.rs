@@ -121,6 +121,13 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
         }
         let padx = ((x1 - x0) * 0.04).max(1e-9);
         let pady = ((y1 - y0) * 0.08).max(1e-9);
+        // The axes' ends and their ticks need the padded range in floating point.
+        let ends = [x0 - padx, x1 + padx, y0 - pady, y1 + pady];
+        if !(ends.iter().all(|e| e.is_finite()) && (x1 - x0).is_finite() && (y1 - y0).is_finite()) {
+            return Err(format!(
+                "the values span more than a float can hold (x from {x0:e} to {x1:e}, y from {y0:e} to {y1:e})"
+            ));
+        }
         let mut ctx = ChartBuilder::on(&root)
             .caption(&chart.title, ("sans-serif", 22))
             .margin(14)
