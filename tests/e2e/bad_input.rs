@@ -333,3 +333,82 @@ fn impossible_requests_are_refused_before_the_work() {
         &["more than a float can hold"],
     );
 }
+
+/// A dem state says each thing once: a second material, clock or energy record, a second
+/// contact of one pair, a negative clock time, an empty facets wall, a contact whose normal is
+/// not a unit vector: each is an error naming its line.
+#[test]
+fn dem_refuses_repeated_and_empty_records() {
+    let settled = super::ok(
+        "dem",
+        &["--time", "0.3"],
+        &super::repo_file("examples/drop.jsonl"),
+    );
+    let text = String::from_utf8(settled).unwrap();
+    let lines: Vec<String> = text.lines().map(String::from).collect();
+    let find = |t: &str| {
+        lines
+            .iter()
+            .position(|l| l.starts_with(&format!("{{\"type\":\"{t}\"")))
+            .unwrap_or_else(|| panic!("a {t} record"))
+    };
+    let scene = |v: &[String]| v.join("\n") + "\n";
+    let twice = |k: usize| {
+        let mut v = lines.clone();
+        v.insert(k + 1, lines[k].clone());
+        scene(&v)
+    };
+    let edited = |k: usize, edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut v = lines.clone();
+        let mut rec: serde_json::Value = serde_json::from_str(&lines[k]).unwrap();
+        edit(&mut rec);
+        v[k] = rec.to_string();
+        scene(&v)
+    };
+    let (material, clock, energy, contact, wall) = (
+        find("material"),
+        find("clock"),
+        find("energy"),
+        find("contact"),
+        find("wall"),
+    );
+    let cases = [
+        (twice(material), material + 2, "a second material record"),
+        (twice(clock), clock + 2, "a second clock record"),
+        (twice(energy), energy + 2, "a second energy record"),
+        (
+            twice(contact),
+            contact + 2,
+            "a second contact of the same pair",
+        ),
+        (
+            edited(clock, &|r| r["time"] = serde_json::json!(-1.0)),
+            clock + 1,
+            "time must not be negative",
+        ),
+        (
+            edited(contact, &|r| {
+                r["normal"][0] = serde_json::json!(r["normal"][0].as_f64().unwrap() + 0.5)
+            }),
+            contact + 1,
+            "not a unit vector",
+        ),
+        (
+            edited(
+                wall,
+                &|r| *r = serde_json::json!({"type": "wall", "id": 0, "kind": "facets", "nodes": [], "triangles": []}),
+            ),
+            wall + 1,
+            "at least one triangle",
+        ),
+    ];
+    for (input, line, what) in cases {
+        fails(
+            "dem",
+            &["--steps", "1"],
+            input.as_bytes(),
+            1,
+            &[what, &format!("line {line}")],
+        );
+    }
+}

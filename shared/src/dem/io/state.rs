@@ -386,6 +386,9 @@ impl WallRecord {
             "facets" => {
                 let nodes = need(&self.nodes, kind, "nodes")?;
                 let triangles = need(&self.triangles, kind, "triangles")?;
+                if triangles.is_empty() {
+                    return Err("a facets wall needs at least one triangle".into());
+                }
                 all_finite("node", nodes.iter().flatten())?;
                 let nodes: Vec<Vec3> = nodes.iter().map(v3).collect();
                 for (k, t) in triangles.iter().enumerate() {
@@ -521,6 +524,7 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
     let mut world = World::new(Material::default(), Vec3::zeros());
     let mut header = false;
     let mut material_seen = false;
+    let (mut clock_seen, mut energy_seen) = (false, false);
     let mut energy = Energy::default();
     let mut pending_bodies: Vec<(usize, BodyRecord)> = Vec::new();
     let mut contacts = Vec::new();
@@ -563,6 +567,9 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
         match rec {
             Record::Header { .. } => return Err(at(n, "a second header")),
             Record::Material(m) => {
+                if material_seen {
+                    return Err(at(n, "a second material record"));
+                }
                 m.check().map_err(|e| at(n, format!("material: {e}")))?;
                 world.material = m;
                 material_seen = true;
@@ -573,7 +580,14 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 dt,
                 gravity,
             } => {
+                if clock_seen {
+                    return Err(at(n, "a second clock record"));
+                }
+                clock_seen = true;
                 finite(n, "clock", &[time, dt, gravity[0], gravity[1], gravity[2]])?;
+                if time < 0.0 {
+                    return Err(at(n, "the clock's time must not be negative"));
+                }
                 if dt < 0.0 {
                     return Err(at(n, "dt must not be negative (0: choose automatically)"));
                 }
@@ -603,6 +617,10 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 membrane_damping,
                 pressure_work,
             } => {
+                if energy_seen {
+                    return Err(at(n, "a second energy record"));
+                }
+                energy_seen = true;
                 finite(
                     n,
                     "energy",
@@ -735,7 +753,28 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 format!("contact names body {} which does not exist", c.body),
             ));
         }
-        world.contacts.insert(
+        finite(
+            n,
+            "contact",
+            &[
+                c.normal[0],
+                c.normal[1],
+                c.normal[2],
+                c.point[0],
+                c.point[1],
+                c.point[2],
+                c.depth,
+                c.normal_force,
+                c.shear[0],
+                c.shear[1],
+                c.shear[2],
+                c.potential.unwrap_or(0.0),
+            ],
+        )?;
+        if (v3(&c.normal).norm() - 1.0).abs() > 1e-6 {
+            return Err(at(n, "the contact's normal is not a unit vector"));
+        }
+        let old = world.contacts.insert(
             (partner, c.body),
             Contact {
                 normal: v3(&c.normal),
@@ -749,6 +788,9 @@ pub fn read_world<R: BufRead>(input: R) -> Result<World, StateError> {
                 sliding: c.sliding,
             },
         );
+        if old.is_some() {
+            return Err(at(n, "a second contact of the same pair"));
+        }
     }
     world.energy = Energy {
         kinetic: world.bodies.iter().map(Body::kinetic_energy).sum(),
