@@ -78,7 +78,7 @@ fn simplify_rejects_broken_meshes_and_budgets() {
         "simplify",
         &["--vertices", "3"],
         &fixture("cube.obj"),
-        1,
+        2,
         &["at least 4"],
     );
     fails("simplify", &[], &fixture("cube.obj"), 2, &["--vertices"]);
@@ -150,16 +150,16 @@ fn bad_arguments_are_usage_errors() {
 
 #[test]
 fn bad_parameter_values_are_errors() {
-    fails("polygen", &["--faces", "3"], b"", 1, &["at least 4 faces"]);
-    fails("polygen", &["--radius", "-2"], b"", 1, &["radius"]);
+    fails("polygen", &["--faces", "3"], b"", 2, &["at least 4 faces"]);
+    fails("polygen", &["--radius", "-2"], b"", 2, &["radius"]);
     fails(
         "polygen",
         &["--max-elongation", "0.5"],
         b"",
-        1,
+        2,
         &["elongation cap"],
     );
-    fails("polygen", &["--count", "0"], b"", 1, &["--count"]);
+    fails("polygen", &["--count", "0"], b"", 2, &["--count"]);
     fails(
         "polygen",
         &["--faces", "4", "--max-elongation", "2.5"],
@@ -171,7 +171,7 @@ fn bad_parameter_values_are_errors() {
         "abrade",
         &["--levels", "9"],
         &fixture("cube.obj"),
-        1,
+        2,
         &["too many"],
     );
 }
@@ -197,7 +197,7 @@ fn plot_rejects_bad_tables() {
         "plot",
         &["--x", "a", "--y", "b", "--band", "wide"],
         b"a,b\n1,2\n",
-        1,
+        2,
         &["--band"],
     );
 }
@@ -247,7 +247,7 @@ fn dem_time_step_out_of_range_is_an_input_error_not_a_panic() {
         "dem",
         &["--dt", "1e-300", "--time", "1"],
         drop.as_bytes(),
-        1,
+        2,
         &["more than 1e12"],
     );
 }

@@ -131,45 +131,37 @@ fn bad_scenes_and_arguments() {
     );
     fails(&["--steps", "1"], &scene[..scene.len() - 30], &["line 16"]);
     fails(&["--steps", "1"], b"", &["empty"]);
-    fails(&[], &scene, &["--steps N or --time T"]);
-    fails(&["--steps", "1", "--dt", "-1"], &scene, &["--dt"]);
-    fails(
-        &["--steps", "1", "--until-unbalanced", "0"],
-        &scene,
-        &["--until-unbalanced must be a positive ratio"],
-    );
-    fails(
-        &["--until-unbalanced", "0.01"],
-        &scene,
-        &["--steps N or --time T"],
-    );
     fails(
         &["--steps", "1"],
         text.replace("\"scale\":0.008", "\"scale\":-1").as_bytes(),
         &["line 11", "scale"],
     );
     fails(
-        &["--steps", "1", "--kn", "0"],
-        &scene,
-        &["--kn must be a positive"],
-    );
-    fails(
-        &["--steps", "1", "--ks", "nan"],
-        &scene,
-        &["--ks must be a stiffness of 0 or more"],
-    );
-    fails(
-        &["--steps", "1", "--damping", "1"],
-        &scene,
-        &["--damping must be in [0, 1)"],
-    );
-    fails(
         &["--import-peer", "/nonexistent/scene.txt", "--steps", "1"],
         b"",
         &["opening /nonexistent/scene.txt"],
     );
-    // Usage errors (clap's exit code 2).
+    // Usage errors (exit code 2): options out of their range or missing.
     for (args, needle) in [
+        (&[][..], "--steps N or --time T"),
+        (&["--steps", "1", "--dt", "-1"][..], "--dt"),
+        (
+            &["--steps", "1", "--until-unbalanced", "0"][..],
+            "--until-unbalanced must be a positive ratio",
+        ),
+        (&["--until-unbalanced", "0.01"][..], "--steps N or --time T"),
+        (
+            &["--steps", "1", "--kn", "0"][..],
+            "--kn must be a positive",
+        ),
+        (
+            &["--steps", "1", "--ks", "nan"][..],
+            "--ks must be a stiffness of 0 or more",
+        ),
+        (
+            &["--steps", "1", "--damping", "1"][..],
+            "--damping must be in [0, 1)",
+        ),
         (&["--abrade", "5", "--steps", "1"][..], "'5' for '--abrade"),
         (&["--abrade", "x", "--steps", "1"][..], "'x' for '--abrade"),
         (
@@ -487,9 +479,11 @@ fn obj_output_holds_the_bodies_where_they_are_and_renders() {
     }
     let png = ok("render", &[], &obj);
     assert!(png.starts_with(b"\x89PNG"));
-    fails(
+    super::fails(
+        "dem",
         &["--steps", "1", "--obj", "x.obj", "--obj-group", "a b"],
         &scene,
+        2,
         &["--obj-group must be a word"],
     );
 }

@@ -3,7 +3,7 @@
 
 use super::{fails, fixture, inside_out_cube, ok, run, run_env};
 
-/// Runs pack on bad input: exit 1 (2 for usage), the message holds every needle, no output.
+/// Runs pack on bad input: exit 1 (2 for usage: an option out of its range), the message holds every needle, no output.
 fn rejects(args: &[&str], stdin: &[u8], code: i32, needles: &[&str]) {
     let out = fails("pack", args, stdin, code, needles);
     assert!(out.is_empty(), "pack {args:?} wrote output on failure");
@@ -25,7 +25,7 @@ fn pack_rejects_broken_templates_and_arguments() {
     rejects(
         &["--size-min", "0.03", "--size-max", "0.02"],
         &nine,
-        1,
+        2,
         &["--size-min 0.03 is above the largest size 0.02"],
     );
     rejects(
@@ -44,7 +44,7 @@ fn pack_rejects_broken_templates_and_arguments() {
         ("--damping", "1"),
         ("--kn", "0"),
     ] {
-        rejects(&[flag, value], &nine, 1, &[flag]);
+        rejects(&[flag, value], &nine, 2, &[flag]);
     }
     rejects(&["--size-min", "ten"], &nine, 2, &["invalid value"]);
     rejects(
@@ -56,7 +56,7 @@ fn pack_rejects_broken_templates_and_arguments() {
     rejects(
         &["--relative-density", "1.5"],
         &nine,
-        1,
+        2,
         &["--relative-density must be in [0, 1]"],
     );
     rejects(
@@ -74,7 +74,7 @@ fn pack_rejects_broken_templates_and_arguments() {
     rejects(
         &["--limits-only", "--calibration-scale", "1.5"],
         &nine,
-        1,
+        2,
         &["--calibration-scale must be in (0, 1]"],
     );
     rejects(
@@ -86,21 +86,21 @@ fn pack_rejects_broken_templates_and_arguments() {
     rejects(
         &["--void-ratio-limits", "0.9,0.5"],
         &nine,
-        1,
+        2,
         &["0 < E_MIN < E_MAX"],
     );
     // The box's sides belong to the box, the diameter to the cylinder.
-    rejects(&["--width", "0.2"], &nine, 1, &["--container box"]);
+    rejects(&["--width", "0.2"], &nine, 2, &["--container box"]);
     rejects(
         &["--container", "box", "--diameter", "0.2"],
         &nine,
-        1,
+        2,
         &["--diameter is the cylinder's"],
     );
     rejects(
         &["--container", "box", "--depth", "0"],
         &nine,
-        1,
+        2,
         &["--depth must be a positive number"],
     );
     rejects(

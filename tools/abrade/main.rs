@@ -1,6 +1,6 @@
 //! abrade: Catmull-Clark subdivision of every object of an OBJ stream (the paper's abrasion).
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::Parser;
 use shared::cli;
 use shared::geometry::mesh::PolyMesh;
@@ -35,7 +35,9 @@ fn main() -> ExitCode {
 fn run(args: Cli) -> anyhow::Result<()> {
     let (l0, l1) = args.levels;
     if l1 > 6 {
-        bail!("--levels {l1} is too many: each level multiplies the faces by about 4 (at most 6)");
+        return Err(cli::usage(format!(
+            "--levels {l1} is too many: each level multiplies the faces by about 4 (at most 6)"
+        )));
     }
     let named = l0 != l1;
     let mut out = cli::ObjOut::new("abrade", cli::stdout());

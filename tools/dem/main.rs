@@ -268,7 +268,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         damping: args.damping.unwrap_or(m.damping),
         ..m
     };
-    wanted.check().map_err(|e| anyhow::anyhow!("--{e}"))?;
+    wanted.check().map_err(|e| cli::usage(format!("--{e}")))?;
     if args.kn.is_some() || args.ks.is_some() {
         world.set_stiffness(wanted.kn, wanted.ks);
         world.dt = 0.0; // the scene's step was for the old stiffness
@@ -276,13 +276,18 @@ fn run(args: Cli) -> anyhow::Result<()> {
     world.material.damping = wanted.damping;
     if let Some(dt) = args.dt {
         if !(dt > 0.0 && dt.is_finite()) {
-            bail!("--dt must be a positive number of seconds, got {dt}");
+            return Err(cli::usage(format!(
+                "--dt must be a positive number of seconds, got {dt}"
+            )));
         }
         world.dt = dt;
     }
     if world.dt == 0.0 {
         if !(args.safety > 0.0 && args.safety <= 1.0) {
-            bail!("--safety must be in (0, 1], got {}", args.safety);
+            return Err(cli::usage(format!(
+                "--safety must be in (0, 1], got {}",
+                args.safety
+            )));
         }
         let critical = world.critical_dt();
         world.dt = world.time_step(args.safety)?;
@@ -303,22 +308,25 @@ fn run(args: Cli) -> anyhow::Result<()> {
         (None, Some(t)) if t >= 0.0 && t.is_finite() => {
             let n = (t / world.dt).ceil();
             if n > MAX_STEPS {
-                bail!(
-                    "--time {t} s at a time step of {:.4e} s is {n:.3e} steps, more than {MAX_STEPS:e}",
-                    world.dt
-                );
+                return Err(cli::usage(format!("--time {t} s at a time step of {:.4e} s is {n:.3e} steps, more than {MAX_STEPS:e}", world.dt)));
             }
             n as u64
         }
-        (None, Some(t)) => bail!("--time must be a non-negative number of seconds, got {t}"),
-        (None, None) => bail!("say how far to run: --steps N or --time T"),
+        (None, Some(t)) => {
+            return Err(cli::usage(format!(
+                "--time must be a non-negative number of seconds, got {t}"
+            )))
+        }
+        (None, None) => return Err(cli::usage("say how far to run: --steps N or --time T")),
     };
     if args.every == 0 {
-        bail!("--every must be at least 1");
+        return Err(cli::usage("--every must be at least 1"));
     }
     if let Some(r) = args.until_unbalanced {
         if !(r > 0.0 && r.is_finite()) {
-            bail!("--until-unbalanced must be a positive ratio, got {r}");
+            return Err(cli::usage(format!(
+                "--until-unbalanced must be a positive ratio, got {r}"
+            )));
         }
     }
     let mut series = match &args.series {
@@ -332,13 +340,13 @@ fn run(args: Cli) -> anyhow::Result<()> {
             .obj_group
             .contains(|c: char| c.is_whitespace() || c == '/')
     {
-        bail!(
+        return Err(cli::usage(format!(
             "--obj-group must be a word without spaces or '/', got '{}'",
             args.obj_group
-        );
+        )));
     }
     if args.vtk_every == 0 {
-        bail!("--vtk-every must be at least 1");
+        return Err(cli::usage("--vtk-every must be at least 1"));
     }
     let mut snapshots = match &args.vtk {
         Some(dir) => {

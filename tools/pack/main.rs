@@ -1,6 +1,6 @@
 //! pack: a dense, isotropically consolidated specimen of polyhedra, ready for the triaxial test.
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::{Parser, ValueEnum};
 use shared::cli;
 use shared::dem::io::state;
@@ -267,7 +267,9 @@ fn templates() -> anyhow::Result<Vec<Shape>> {
 /// A pack error as the user of this tool meets it: a parameter by its option's name.
 fn flagged(e: PackError) -> anyhow::Error {
     match e {
-        PackError::Param { field, rule } => anyhow::anyhow!("--{} {rule}", field.replace('_', "-")),
+        PackError::Param { field, rule } => {
+            cli::usage(format!("--{} {rule}", field.replace('_', "-")))
+        }
         e @ PackError::Crowded(..) => anyhow::anyhow!("{e} (lower --cloud-fraction)"),
         e @ PackError::NotSettled { .. } => anyhow::anyhow!("{e} (raise --max-steps)"),
         e => e.into(),
@@ -276,7 +278,7 @@ fn flagged(e: PackError) -> anyhow::Error {
 
 fn run(args: Cli) -> anyhow::Result<()> {
     if args.every == 0 {
-        bail!("--every must be at least 1");
+        return Err(cli::usage("--every must be at least 1"));
     }
     let material = Material {
         density: args.density,
@@ -286,17 +288,19 @@ fn run(args: Cli) -> anyhow::Result<()> {
         wall_friction: 0.0,
         damping: args.damping,
     };
-    material.check().map_err(|e| anyhow::anyhow!("--{e}"))?;
+    material.check().map_err(|e| cli::usage(format!("--{e}")))?;
     let container = match args.container {
         Vessel::Cylinder => {
             if args.width.is_some() || args.depth.is_some() {
-                bail!("--width and --depth are the sides of a box: add --container box, or give the cylinder's --diameter");
+                return Err(cli::usage("--width and --depth are the sides of a box: add --container box, or give the cylinder's --diameter"));
             }
             Container::Cylinder
         }
         Vessel::Box => {
             if args.diameter.is_some() {
-                bail!("--diameter is the cylinder's: a box has --width and --depth");
+                return Err(cli::usage(
+                    "--diameter is the cylinder's: a box has --width and --depth",
+                ));
             }
             Container::Box
         }
@@ -339,7 +343,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let mut limits = args.void_ratio_limits;
     if let Some((lo, hi)) = limits {
         if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo < hi) {
-            bail!("--void-ratio-limits must be 0 < E_MIN < E_MAX, got {lo},{hi}");
+            return Err(cli::usage(format!(
+                "--void-ratio-limits must be 0 < E_MIN < E_MAX, got {lo},{hi}"
+            )));
         }
     }
     if args.limits_only {

@@ -68,10 +68,10 @@ fn run(args: Cli) -> anyhow::Result<()> {
             )
         })?;
     if !["std", "minmax", "p05-p95", "none"].contains(&args.band.as_str()) {
-        bail!(
+        return Err(cli::usage(format!(
             "--band '{}' is not one of std, minmax, p05-p95, none",
             args.band
-        );
+        )));
     }
     let mut rdr = csv::Reader::from_reader(cli::stdin());
     let header = rdr.headers().context("reading the CSV header")?.clone();

@@ -67,6 +67,13 @@ fn run(args: Cli) -> anyhow::Result<()> {
             args.max_faces
         )));
     }
+    Params {
+        faces: k0,
+        radius: args.radius,
+        max_elongation: args.max_elongation,
+    }
+    .check()
+    .map_err(|e| cli::usage(e.to_string()))?;
     // The jobs in order, made 512 at a time: memory does not grow with --count.
     let total_jobs = (k1 + 1).saturating_sub(k0) as u128 * args.count as u128;
     let mut jobs = (k0..=k1).flat_map(|k| (0..args.count).map(move |i| (k, i)));

@@ -1,6 +1,6 @@
 //! simplify: the convex hull of every object of an OBJ stream, cut to a vertex budget.
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::Parser;
 use shared::cli;
 use shared::geometry::hull;
@@ -36,10 +36,10 @@ fn main() -> ExitCode {
 
 fn run(args: Cli) -> anyhow::Result<()> {
     if args.vertices < 4 {
-        bail!(
+        return Err(cli::usage(format!(
             "--vertices must be at least 4 (a tetrahedron), got {}",
             args.vertices
-        );
+        )));
     }
     let mut out = cli::ObjOut::new("simplify", cli::stdout());
     let n = cli::for_each_object(

@@ -22,6 +22,22 @@ use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use thiserror::Error;
 
+impl Params {
+    /// The parameters' ranges: at least 4 faces, a positive finite radius, a cap above 1.
+    pub fn check(&self) -> Result<(), PolygenError> {
+        if self.faces < 4 {
+            return Err(PolygenError::TooFewFaces(self.faces));
+        }
+        if !(self.radius > 0.0 && self.radius.is_finite()) {
+            return Err(PolygenError::BadRadius(self.radius));
+        }
+        if self.max_elongation.is_nan() || self.max_elongation <= 1.0 {
+            return Err(PolygenError::BadCap(self.max_elongation));
+        }
+        Ok(())
+    }
+}
+
 /// Default elongation cap (farthest vertex over the inscribed radius `R`); see `docs/models/polygen.md`
 /// for how it was chosen and what it changes.
 pub const DEFAULT_MAX_ELONGATION: f64 = 5.0;
@@ -239,16 +255,8 @@ pub fn uniform_on_sphere(rng: &mut impl RngCore, r: f64) -> Vec3 {
 
 /// Object `index` of the family (`params`, `seed`): deterministic, independent of other objects.
 pub fn generate(params: &Params, seed: u64, index: u64) -> Result<Polyhedron, PolygenError> {
+    params.check()?;
     let k = params.faces;
-    if k < 4 {
-        return Err(PolygenError::TooFewFaces(k));
-    }
-    if !(params.radius > 0.0 && params.radius.is_finite()) {
-        return Err(PolygenError::BadRadius(params.radius));
-    }
-    if params.max_elongation.is_nan() || params.max_elongation <= 1.0 {
-        return Err(PolygenError::BadCap(params.max_elongation));
-    }
     let mut rng = stream(seed, k, index);
     let mut redraws = Redraws::default();
     let mut points = Vec::with_capacity(k);

@@ -293,10 +293,10 @@ impl Params {
                 rule: format!("must be at most {MAX_PARTICLES}"),
             });
         }
-        if self.segments < 16 {
+        if !(16..=MAX_SEGMENTS).contains(&self.segments) {
             return Err(PackError::Param {
                 field: "segments",
-                rule: format!("must be at least 16, got {}", self.segments),
+                rule: format!("must be 16 to {MAX_SEGMENTS}, got {}", self.segments),
             });
         }
         Ok(())
@@ -429,6 +429,9 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
     w.dt = w.time_step(p.safety)?;
     Ok(w)
 }
+
+/// The most facets of the cylinder (its cost grows with them; 128 is the default).
+pub const MAX_SEGMENTS: u32 = 10_000;
 
 /// Tries per particle before [`place`] gives up.
 const TRIES: usize = 20_000;
