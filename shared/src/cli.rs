@@ -115,6 +115,23 @@ pub fn solid(obj: &ObjObject) -> anyhow::Result<crate::geometry::mass::MassProps
     Ok(props)
 }
 
+/// An output file's folder must exist: checked before the work, so that a long run does not
+/// fail at its end for a typing error.
+pub fn check_output(path: Option<&std::path::Path>, flag: &str) -> anyhow::Result<()> {
+    if let Some(p) = path {
+        if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            if !d.is_dir() {
+                anyhow::bail!(
+                    "{flag} {}: the folder {} does not exist",
+                    p.display(),
+                    d.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Buffered standard input (movable to another thread, so reading can overlap work).
 pub fn stdin() -> io::BufReader<io::Stdin> {
     io::BufReader::with_capacity(1 << 16, io::stdin())

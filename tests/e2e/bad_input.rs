@@ -412,3 +412,29 @@ fn dem_refuses_repeated_and_empty_records() {
         );
     }
 }
+
+/// An output file into a folder that does not exist fails before the work, with nothing
+/// written.
+#[test]
+fn outputs_into_missing_folders_fail_before_the_work() {
+    let nine = fixture("templates_seed7.obj");
+    let out = fails(
+        "pack",
+        &["--summary", "/nonexistent-dir/s.json"],
+        &nine,
+        1,
+        &["/nonexistent-dir does not exist"],
+    );
+    assert!(out.is_empty());
+    let drop = super::repo_file("examples/drop.jsonl");
+    for flag in ["--obj", "--series"] {
+        let out = fails(
+            "dem",
+            &["--steps", "10", flag, "/nonexistent-dir/x"],
+            &drop,
+            1,
+            &["does not exist"],
+        );
+        assert!(out.is_empty());
+    }
+}

@@ -222,6 +222,8 @@ fn read_frame(which: &str) -> anyhow::Result<World> {
 }
 
 fn run(args: Cli) -> anyhow::Result<()> {
+    cli::check_output(args.obj.as_deref(), "--obj")?;
+    cli::check_output(args.series.as_deref(), "--series")?;
     let mut world = match &args.import_peer {
         Some(path) => {
             let open = |p: &std::path::Path| -> anyhow::Result<std::io::BufReader<std::fs::File>> {

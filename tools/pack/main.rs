@@ -277,6 +277,7 @@ fn flagged(e: PackError) -> anyhow::Error {
 }
 
 fn run(args: Cli) -> anyhow::Result<()> {
+    cli::check_output(args.summary.as_deref(), "--summary")?;
     if args.every == 0 {
         return Err(cli::usage("--every must be at least 1"));
     }

@@ -362,22 +362,6 @@ fn bodies_obj(
 }
 
 /// Output files are checked before the run: their folders exist.
-fn check_output(path: &Option<std::path::PathBuf>, flag: &str) -> anyhow::Result<()> {
-    if let Some(p) = path {
-        let dir = p.parent().filter(|d| !d.as_os_str().is_empty());
-        if let Some(d) = dir {
-            if !d.is_dir() {
-                bail!(
-                    "{flag} {}: the folder {} does not exist",
-                    p.display(),
-                    d.display()
-                );
-            }
-        }
-    }
-    Ok(())
-}
-
 fn run(args: Cli) -> anyhow::Result<()> {
     if args.obj_group.is_empty() || args.obj_group.contains(['/', ' ']) {
         return Err(cli::usage(format!(
@@ -398,7 +382,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         (&args.csv, "--csv"),
         (&args.obj, "--obj"),
     ] {
-        check_output(path, flag)?;
+        cli::check_output(path.as_deref(), flag)?;
     }
     let clock = std::time::Instant::now();
     let quiet = args.quiet;
