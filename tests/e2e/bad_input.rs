@@ -223,8 +223,8 @@ fn help_shows_an_example_pipe() {
 }
 
 /// A time step that cannot be computed (a stiffness, density or size out of range) is an
-/// input error, not a panic; a step above the critical one is warned about; a run that would
-/// never end is refused.
+/// input error, not a panic; a step above the critical one is warned about; a run that blows
+/// up stops with the step and the body; a run that would never end is refused.
 #[test]
 fn dem_time_step_out_of_range_is_an_input_error_not_a_panic() {
     let drop = String::from_utf8(super::repo_file("examples/drop.jsonl")).unwrap();
@@ -240,9 +240,27 @@ fn dem_time_step_out_of_range_is_an_input_error_not_a_panic() {
         let out = fails("dem", args, scene.as_bytes(), 1, &["critical time step"]);
         assert!(out.is_empty(), "nothing written");
     }
-    let out = super::run("dem", &["--dt", "1", "--steps", "1"], drop.as_bytes());
-    assert!(out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("above the critical"));
+    // A step of 1 s: warned about, and the blow-up it causes stops the run at its first step.
+    let out = fails(
+        "dem",
+        &["--dt", "1", "--steps", "3"],
+        drop.as_bytes(),
+        1,
+        &["above the critical", "blew up at step 1", "body 0"],
+    );
+    assert!(out.is_empty(), "no state written");
+    // A body started 1 m below the floor is flung out at its first step: an error, not a state
+    // of nulls.
+    let buried = drop.replacen("\"pos\":[0.0,0.0,0.04]", "\"pos\":[0.0,0.0,-1.0]", 1);
+    assert!(buried != drop, "the first body's position");
+    let out = fails(
+        "dem",
+        &["--steps", "100"],
+        buried.as_bytes(),
+        1,
+        &["blew up at step 1", "body 0"],
+    );
+    assert!(out.is_empty(), "no state written");
     fails(
         "dem",
         &["--dt", "1e-300", "--time", "1"],

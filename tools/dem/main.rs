@@ -368,6 +368,13 @@ fn run(args: Cli) -> anyhow::Result<()> {
         for k in 0..steps {
             world.step();
             ran = k + 1;
+            if let Some(r) = world.runaway() {
+                bail!(
+                    "the run blew up at step {} (time {:.6e} s): {r}; no state written",
+                    world.step,
+                    world.time
+                );
+            }
             let done = args.until_unbalanced.is_some_and(|r| world.unbalanced < r);
             let last = done || k + 1 == steps;
             if let Some(s) = series.as_mut() {

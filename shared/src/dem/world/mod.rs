@@ -38,6 +38,14 @@ use crate::math::{cube, pow5, Vec3};
 use nalgebra::UnitQuaternion;
 use step::Buffers;
 
+/// A body whose motion the integrator has lost ([`World::runaway`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("body {body} {what}")]
+pub struct Runaway {
+    pub body: usize,
+    pub what: String,
+}
+
 /// Why a world has no time step ([`World::time_step`]).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum TimeStepError {
@@ -389,6 +397,41 @@ impl World {
         (self.critical_dts().iter())
             .map(|&(t, r)| t.min(r))
             .fold(self.membranes_critical_dt(), f64::min)
+    }
+
+    /// The first body whose state is not finite, or that moves more than its own bounding
+    /// radius in one step (`|v| dt > r`: no contact can resolve that, so the integration has
+    /// blown up: a time step above the critical one, a body started deep in a wall, forces out
+    /// of range); `None` while every body is sound.
+    pub fn runaway(&self) -> Option<Runaway> {
+        self.bodies.iter().enumerate().find_map(|(i, b)| {
+            let finite = b
+                .pos
+                .iter()
+                .chain(b.vel.iter())
+                .chain(b.ang_mom.iter())
+                .all(|x| x.is_finite())
+                && b.rot.coords.iter().all(|x| x.is_finite());
+            if !finite {
+                return Some(Runaway {
+                    body: i,
+                    what: "has a position, orientation or velocity that is not a finite number"
+                        .into(),
+                });
+            }
+            let r = self.shapes[b.shape as usize].radius * b.scale;
+            if b.vel.norm_squared() * (self.dt * self.dt) <= r * r {
+                return None;
+            }
+            let travel = b.vel.norm() * self.dt;
+            Some(Runaway {
+                body: i,
+                what: format!(
+                    "moves {travel:.3e} m in a step, more than its size {r:.3e} m (at {:.3e} m/s)",
+                    b.vel.norm()
+                ),
+            })
+        })
     }
 
     /// The time step `safety x` [`World::critical_dt`], or why there is none: a critical step
