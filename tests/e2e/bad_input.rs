@@ -456,3 +456,36 @@ fn outputs_into_missing_folders_fail_before_the_work() {
         assert!(out.is_empty());
     }
 }
+
+/// What one object may hold is bounded: a line of more than 16 MiB, more than 16 MiB of
+/// comments or 10 000 attributes in one object are errors, quickly and in little memory.
+#[test]
+fn obj_reader_bounds_lines_comments_and_attributes() {
+    let cube = String::from_utf8(fixture("cube.obj")).unwrap();
+    let mut long = b"v 0 0 ".to_vec();
+    long.resize(17 << 20, b'9');
+    long.push(b'\n');
+    fails(
+        "roundness",
+        &[],
+        &long,
+        1,
+        &["line 1", "longer than 16777216 bytes"],
+    );
+    let comments = cube.clone() + &"# a comment of some length to fill the space\n".repeat(400_000);
+    fails(
+        "roundness",
+        &[],
+        comments.as_bytes(),
+        1,
+        &["bytes of comments in one object"],
+    );
+    let attributes: String = (0..10_001).map(|i| format!("#@ a{i}=1\n")).collect();
+    fails(
+        "roundness",
+        &[],
+        (cube + &attributes).as_bytes(),
+        1,
+        &["more than 10000 attributes"],
+    );
+}

@@ -18,8 +18,18 @@
 use crate::geometry::mesh::PolyMesh;
 use crate::math::Vec3;
 use crate::text::excerpt;
-use std::io::{self, BufRead, Write};
+use std::io::{self, BufRead, Read, Write};
 use thiserror::Error;
+
+/// The longest line the reader takes, in bytes (a face of a million corners fits).
+pub const MAX_LINE: usize = 16 << 20;
+
+/// The most comment text one object may carry, in bytes (comments inside an object are kept
+/// with it; those between objects pass through as they come).
+pub const MAX_COMMENTS: usize = 16 << 20;
+
+/// The most attributes (`#@ key=value`) one object may carry.
+pub const MAX_ATTRIBUTES: usize = 10_000;
 
 /// An OBJ reading error: an I/O failure, or bad text at a line, in an object.
 #[derive(Debug, Error)]
@@ -64,6 +74,8 @@ pub struct ObjReader<R> {
     /// Comments met after the current object's faces began: they belong to the object if more
     /// of it follows, to the stream if the object ends.
     trailing: Vec<String>,
+    /// Bytes of comments the current object holds (with `trailing`).
+    held_comments: usize,
     /// Items ready to hand out (a comment seen before any object, or a finished object).
     ready: std::collections::VecDeque<Item>,
     done: bool,
@@ -78,6 +90,7 @@ impl<R: BufRead> ObjReader<R> {
             base: 0,
             current: None,
             trailing: Vec::new(),
+            held_comments: 0,
             ready: Default::default(),
             done: false,
         }
@@ -96,6 +109,7 @@ impl<R: BufRead> ObjReader<R> {
     }
 
     fn finish_current(&mut self) {
+        self.held_comments = 0;
         if let Some(obj) = self.current.take() {
             self.base += obj.mesh.vertices.len() as u64;
             self.ready.push_back(Item::Object(obj));
@@ -117,18 +131,25 @@ impl<R: BufRead> ObjReader<R> {
     fn fill(&mut self) -> Result<(), ObjError> {
         while self.ready.is_empty() && !self.done {
             self.buf.clear();
-            let read = self.input.read_line(&mut self.buf).map_err(|e| {
-                if e.kind() == io::ErrorKind::InvalidData {
-                    self.line_no += 1;
-                    self.err("not UTF-8 text")
-                } else {
-                    ObjError::Io(e)
-                }
-            })?;
+            let read = io::Read::by_ref(&mut self.input)
+                .take(MAX_LINE as u64 + 1)
+                .read_line(&mut self.buf)
+                .map_err(|e| {
+                    if e.kind() == io::ErrorKind::InvalidData {
+                        self.line_no += 1;
+                        self.err("not UTF-8 text")
+                    } else {
+                        ObjError::Io(e)
+                    }
+                })?;
             if read == 0 {
                 self.done = true;
                 self.finish_current();
                 break;
+            }
+            if read > MAX_LINE {
+                self.line_no += 1;
+                return Err(self.err(format!("a line longer than {MAX_LINE} bytes")));
             }
             self.line_no += 1;
             let line = std::mem::take(&mut self.buf);
@@ -153,6 +174,14 @@ impl<R: BufRead> ObjReader<R> {
         if let Some(rest) = text.strip_prefix('#') {
             if let (Some(attrs), Some(obj)) = (rest.strip_prefix('@'), self.current.as_mut()) {
                 for pair in attrs.split_ascii_whitespace() {
+                    if obj.mesh.attrs.0.len() >= MAX_ATTRIBUTES {
+                        let msg = format!("more than {MAX_ATTRIBUTES} attributes in one object");
+                        return Err(ObjError::Parse {
+                            line: self.line_no,
+                            object: excerpt(&obj.mesh.name),
+                            msg,
+                        });
+                    }
                     match pair.split_once('=') {
                         Some((k, v)) if !k.is_empty() => obj.mesh.attrs.set(k, v),
                         _ => {
@@ -163,6 +192,12 @@ impl<R: BufRead> ObjReader<R> {
                     }
                 }
             } else if let Some(obj) = self.current.as_mut() {
+                self.held_comments += rest.len();
+                if self.held_comments > MAX_COMMENTS {
+                    return Err(self.err(format!(
+                        "more than {MAX_COMMENTS} bytes of comments in one object"
+                    )));
+                }
                 if obj.mesh.face_verts.is_empty() {
                     obj.comments.push(rest.to_string());
                 } else {
