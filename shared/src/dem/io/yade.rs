@@ -67,6 +67,9 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
             if nums.len() != 3 {
                 return Err(err(n, "box needs Lx Ly Lz"));
             }
+            if !nums.iter().all(|x| *x > 0.0) {
+                return Err(err(n, "box needs positive sides Lx Ly Lz"));
+            }
             boxed = Some(Vec3::new(nums[0], nums[1], nums[2]));
             continue;
         }
@@ -138,7 +141,21 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
                     "settled state: expected 'id x y z qw qx qy qz' for a known id",
                 ));
             }
-            let q = UnitQuaternion::new_normalize(Quaternion::new(v[4], v[5], v[6], v[7]));
+            if !v.iter().all(|x| x.is_finite()) {
+                return Err(err(n, "settled state: a number is not finite"));
+            }
+            let q = Quaternion::new(v[4], v[5], v[6], v[7]);
+            // A unit quaternion written to a few digits, not one to be made up from nothing.
+            if (q.norm() - 1.0).abs() > 1e-3 {
+                return Err(err(
+                    n,
+                    format!(
+                        "settled state: the orientation has norm {}, not 1",
+                        q.norm()
+                    ),
+                ));
+            }
+            let q = UnitQuaternion::new_normalize(q);
             poses[v[0] as usize] = (Vec3::new(v[1], v[2], v[3]), q);
             seen += 1;
         }
@@ -263,6 +280,21 @@ mod tests {
         assert!(read_peer_scene("box 1 1\n".as_bytes(), None::<&[u8]>, None)
             .unwrap_err()
             .contains("box needs"));
+        assert!(
+            read_peer_scene("box 0 0 0\n".as_bytes(), None::<&[u8]>, None)
+                .unwrap_err()
+                .contains("box needs positive sides")
+        );
+        // A settled state's orientation that is zero, not a number or not of norm 1.
+        let scene = "box 0.1 0.1 0.2\n0 4 0.01 0.05 0.05 0.05 4 0.01 0 0 0 0.01 0 0 0 0.01 -0.005 -0.005 -0.005\n";
+        for (state, needle) in [
+            ("0 0.05 0.05 0.05 0 0 0 0\n", "norm 0"),
+            ("0 0.05 0.05 0.05 NaN 0 0 0\n", "not finite"),
+            ("0 0.05 0.05 0.05 0.5 0 0 0\n", "norm 0.5"),
+        ] {
+            let e = read_peer_scene(scene.as_bytes(), Some(state.as_bytes()), None).unwrap_err();
+            assert!(e.contains(needle) && e.contains("line 1"), "{e}");
+        }
         assert!(
             read_peer_scene("# nothing\n".as_bytes(), None::<&[u8]>, None)
                 .unwrap_err()
