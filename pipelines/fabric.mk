@@ -37,7 +37,7 @@ fig15: $(OUT)/fabric-all.csv
 fig16: $(foreach g,$(GROUPS),$(OUT)/fabric-$(g).csv)
 	cat $(foreach g,$(GROUPS),$(OUT)/fabric-$(g)-roses.obj) | render --cols 3 --same-scale \
 	  --size 1200x1500 --no-edges --elevation 15 \
-	  --title "Fig. 16: normal contact force per direction (z up: the loading axis)" > $(OUT)/fig16.png
+	  --title "Fig. 16: roses of the normal contact force (z: the loading axis)" > $(OUT)/fig16.png
 
 fig17: $(OUT)/fabric-all.csv
 	plot --x axial_strain --y a_c,a_bn,a_fn,a_ft --series group --size 1600x500 \
@@ -80,7 +80,7 @@ paper-fabric: $(PAPER)/fabric-all.csv
 	  --title "Fig. 15 at the paper's scale" < $< > $(PAPER)/fig15.png
 	cat $(foreach g,$(GROUPS),$(PAPER)/$(g)-$(firstword $(PAPER_SEEDS)).roses.obj) | render --cols 3 \
 	  --same-scale --size 1200x1500 --no-edges --elevation 15 \
-	  --title "Fig. 16 at the paper's scale: normal contact force per direction (z: loading axis)" \
+	  --title "Fig. 16 at the paper's scale: roses of the normal contact force" \
 	  > $(PAPER)/fig16.png
 	plot --x nominal_strain --y a_c,a_bn,a_fn,a_ft --series group --stats --band minmax --size 1600x500 \
 	  --xlabel "axial strain ln(H0/H)" --ylabel "a_c (normals),a_bn (branch),a_fn (normal force),a_ft (shear force)" \

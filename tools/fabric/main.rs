@@ -166,7 +166,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         None => None,
     };
     let mut rose_obj = match &args.rose_obj {
-        Some(p) => Some(ObjWriter::new(std::io::BufWriter::new(
+        Some(p) => Some(ObjWriter::relative(std::io::BufWriter::new(
             std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))?,
         ))),
         None => None,

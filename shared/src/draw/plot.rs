@@ -141,7 +141,12 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
             .all(|s| s.points.iter().all(|p| p.0.fract() == 0.0));
         let fmt_x = move |x: &f64| {
             if integer_x {
-                format!("{x:.0}")
+                // Whole-number data (levels, counts): only whole ticks are labelled.
+                if x.fract() == 0.0 {
+                    format!("{x:.0}")
+                } else {
+                    String::new()
+                }
             } else {
                 tick(*x)
             }
@@ -193,13 +198,16 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
             ctx.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))
                 .map_err(|e| e.to_string())?;
         }
-        ctx.configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.3))
-            .label_font(("sans-serif", 13))
-            .position(SeriesLabelPosition::LowerRight)
-            .draw()
-            .map_err(|e| e.to_string())?;
+        // A legend only where a series has a name to show.
+        if chart.series.iter().any(|s| !s.label.is_empty()) {
+            ctx.configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK.mix(0.3))
+                .label_font(("sans-serif", 13))
+                .position(SeriesLabelPosition::LowerRight)
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(Image {
