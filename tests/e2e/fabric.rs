@@ -84,6 +84,10 @@ fn a_triax_stream_gives_a_row_per_frame_within_range() {
     let meshes = std::fs::read_to_string(&obj).unwrap();
     assert_eq!(meshes.matches("\no ").count(), 3, "{}", &meshes[..200]);
     assert!(meshes.contains("start at 0.0 %, mean"));
+    // Relative face indices: the groups' files concatenate into one stream for render.
+    assert!(meshes.contains("\nf -") && !meshes.contains("\nf 1 "));
+    let twice = meshes.clone() + &meshes;
+    assert!(ok("render", &["--size", "200x100"], twice.as_bytes()).starts_with(b"\x89PNG"));
     // JSON rows carry the tensors.
     let json = ok("fabric", &["--json", "--quiet"], short_stream());
     let first: serde_json::Value =
