@@ -342,6 +342,15 @@ fn impossible_requests_are_refused_before_the_work() {
         &["--count"],
     );
     fails("render", &["--azimuth", "nan"], b"", 2, &["--azimuth"]);
+    // A level whose size is known before it is made: 1000 faces at level 6 are 6 million.
+    let big = super::ok("polygen", &["--faces", "1000"], b"");
+    fails(
+        "abrade",
+        &["--levels", "6"],
+        &big,
+        1,
+        &["level 6 would have", "--max-faces"],
+    );
     fails("render", &["--elevation", "inf"], b"", 2, &["--elevation"]);
     fails(
         "plot",

@@ -5,6 +5,7 @@ use clap::Parser;
 use shared::cli;
 use shared::geometry::mesh::PolyMesh;
 use shared::geometry::subdiv;
+use shared::text::excerpt;
 use std::process::ExitCode;
 
 const EXAMPLES: &str = "\
@@ -26,6 +27,10 @@ struct Cli {
     /// Subdivision levels L, or an inclusive range A..B to emit every level from A to B
     #[arg(long, default_value = "1", value_parser = cli::parse_range::<u32>)]
     levels: (u32, u32),
+    /// The most faces an object may have at its last level (each level multiplies them by
+    /// about 4); a larger request is refused before it is made
+    #[arg(long, default_value_t = 2_000_000)]
+    max_faces: u64,
 }
 
 fn main() -> ExitCode {
@@ -40,6 +45,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         )));
     }
     let named = l0 != l1;
+    let max_faces = args.max_faces;
     let mut out = cli::ObjOut::new("abrade", cli::stdout());
     let n = cli::for_each_object(
         "abrade",
@@ -50,6 +56,18 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 .mesh
                 .topology(Some(&obj.face_lines))
                 .with_context(|| format!("object '{}' (line {})", obj.mesh.name, obj.line))?;
+            // Level 1 makes a quad of each face corner; each level after it 4 of each quad.
+            if l1 > 0 {
+                let corners = obj.mesh.face_verts.len() as u64;
+                let faces = corners.saturating_mul(4u64.saturating_pow(l1 - 1));
+                if faces > max_faces {
+                    anyhow::bail!(
+                        "object '{}' (line {}): level {l1} would have {faces} faces, more than --max-faces {max_faces}",
+                        excerpt(&obj.mesh.name),
+                        obj.line
+                    );
+                }
+            }
             let base_level: u32 = obj
                 .mesh
                 .attrs
