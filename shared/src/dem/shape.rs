@@ -14,11 +14,17 @@ use crate::math::{Mat3, Vec3};
 use nalgebra::{Rotation3, SymmetricEigen, UnitQuaternion};
 use thiserror::Error;
 
+/// The most vertices a shape may have: the engine's structures for a shape grow faster than its
+/// vertices (the paper's Ab_3 shapes have about 760; `simplify` cuts a hull to a budget).
+pub const MAX_VERTICES: usize = 20_000;
+
 /// Why a mesh gives no usable shape.
 #[derive(Debug, Error, PartialEq)]
 pub enum ShapeError {
     #[error("shape '{0}': {1}")]
     Hull(String, HullError),
+    #[error("shape '{0}' has {1} vertices, more than {MAX_VERTICES} (cut it with simplify --vertices N)")]
+    TooManyVertices(String, usize),
     #[error("shape '{0}' has no volume ({1:e})")]
     NoVolume(String, f64),
 }
@@ -304,6 +310,12 @@ impl Climb {
 impl Shape {
     /// The convex hull of `mesh`'s vertices, moved to its principal frame.
     pub fn from_mesh(mesh: &PolyMesh) -> Result<Shape, ShapeError> {
+        if mesh.vertices.len() > MAX_VERTICES {
+            return Err(ShapeError::TooManyVertices(
+                crate::text::excerpt(&mesh.name),
+                mesh.vertices.len(),
+            ));
+        }
         let h = hull::convex_hull(&mesh.vertices)
             .map_err(|e| ShapeError::Hull(mesh.name.clone(), e))?;
         let props = MassProps::of(&h.mesh);

@@ -13,7 +13,7 @@ use crate::dem::contacts::Partner;
 use crate::dem::energy::Energy;
 use crate::dem::law::{Contact, Material};
 use crate::dem::membrane::{Guide, Membrane, Pin, Sheet};
-use crate::dem::shape::Shape;
+use crate::dem::shape::{Shape, ShapeError};
 use crate::dem::wall::{Wall, WallKind};
 use crate::dem::world::{Body, World};
 use crate::geometry::mesh::PolyMesh;
@@ -1005,6 +1005,10 @@ fn in_order(n: usize, what: &str, id: u32, expected: usize) -> Result<(), StateE
 }
 
 fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
+    if s.vertices.len() > crate::dem::shape::MAX_VERTICES {
+        let e = ShapeError::TooManyVertices(crate::text::excerpt(&s.name), s.vertices.len());
+        return Err(at(n, e.to_string()));
+    }
     let vertices: Vec<Vec3> = s.vertices.iter().map(v3).collect();
     for (i, v) in vertices.iter().enumerate() {
         if !v.iter().all(|x| x.is_finite()) {
