@@ -351,6 +351,19 @@ fn impossible_requests_are_refused_before_the_work() {
         1,
         &["level 6 would have", "--max-faces"],
     );
+    // A shape the engine would take gigabytes for: refused, pointing to simplify.
+    let huge = super::ok(
+        "polygen",
+        &["--faces", "12000", "--max-elongation", "inf"],
+        b"",
+    );
+    fails(
+        "pack",
+        &["--count", "10"],
+        &huge,
+        1,
+        &["more than 20000", "simplify"],
+    );
     fails("render", &["--elevation", "inf"], b"", 2, &["--elevation"]);
     fails(
         "plot",
