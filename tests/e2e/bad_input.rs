@@ -251,6 +251,27 @@ fn dem_time_step_out_of_range_is_an_input_error_not_a_panic() {
     assert!(out.is_empty(), "no state written");
     // A body started 1 m below the floor is flung out at its first step: an error, not a state
     // of nulls.
+    // 200 bodies in one spot: flung apart at the first step.
+    let body = drop
+        .lines()
+        .find(|l| l.contains("\"type\":\"body\""))
+        .unwrap();
+    let mut spot: String = drop
+        .lines()
+        .filter(|l| !l.contains("\"type\":\"body\""))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    for i in 0..200 {
+        spot.push_str(&body.replacen("\"id\":0,", &format!("\"id\":{i},"), 1));
+        spot.push('\n');
+    }
+    fails(
+        "dem",
+        &["--steps", "10"],
+        spot.as_bytes(),
+        1,
+        &["blew up at step", "no state written"],
+    );
     let buried = drop.replacen("\"pos\":[0.0,0.0,0.04]", "\"pos\":[0.0,0.0,-1.0]", 1);
     assert!(buried != drop, "the first body's position");
     let out = fails(
