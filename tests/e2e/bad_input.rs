@@ -375,7 +375,7 @@ fn impossible_requests_are_refused_before_the_work() {
     // A shape the engine would take gigabytes for: refused, pointing to simplify.
     let huge = super::ok(
         "polygen",
-        &["--faces", "12000", "--max-elongation", "inf"],
+        &["--faces", "30000", "--max-elongation", "inf"],
         b"",
     );
     fails(
@@ -383,7 +383,7 @@ fn impossible_requests_are_refused_before_the_work() {
         &["--count", "10"],
         &huge,
         1,
-        &["more than 20000", "simplify"],
+        &["more than 50000", "simplify"],
     );
     fails("render", &["--elevation", "inf"], b"", 2, &["--elevation"]);
     fails(

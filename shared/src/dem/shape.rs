@@ -16,7 +16,7 @@ use thiserror::Error;
 
 /// The most vertices a shape may have: the engine's structures for a shape grow faster than its
 /// vertices (the paper's Ab_3 shapes have about 760; `simplify` cuts a hull to a budget).
-pub const MAX_VERTICES: usize = 20_000;
+pub const MAX_VERTICES: usize = 50_000;
 
 /// Why a mesh gives no usable shape.
 #[derive(Debug, Error, PartialEq)]
