@@ -9,7 +9,7 @@ use shared::dem::world::World;
 use shared::geometry::obj::ObjWriter;
 use shared::lab::triax::Measure;
 use shared::math::Mat3;
-use shared::micro::fabric::{deviator, samples, Fabric};
+use shared::micro::fabric::{deviator, samples, Fabric, FabricError};
 use shared::micro::rose::Rose;
 use shared::micro::rotation::Rotations;
 use shared::micro::stress::{contact_stress, coordination, invariants, sliding};
@@ -338,12 +338,21 @@ fn rows(args: &Cli, table: &mut Table) -> anyhow::Result<Vec<Kept>> {
                     &mut rotations,
                     args.rose_bands,
                 );
-                if fabric.is_none() && !args.quiet {
-                    eprintln!(
-                        "fabric: state {count} (line {line}): no fabric ({}): its anisotropy columns are empty",
-                        row_reason(&world)
-                    );
-                }
+                let fabric = match fabric {
+                    Ok(f) => Some(f),
+                    Err(e) => {
+                        if !args.quiet {
+                            let bodies = match world.bodies.len() {
+                                n if n < 2 => format!("{n} bodies; "),
+                                _ => String::new(),
+                            };
+                            eprintln!(
+                                "fabric: state {count} (line {line}): no fabric ({bodies}{e}): its anisotropy columns are empty"
+                            );
+                        }
+                        None
+                    }
+                };
                 table.write(&row, fabric.as_ref())?;
                 let key = at
                     .map(|m| m.sigma1 - m.sigma3)
@@ -383,17 +392,7 @@ fn rows(args: &Cli, table: &mut Table) -> anyhow::Result<Vec<Kept>> {
         .collect())
 }
 
-/// Why a state has no fabric.
-fn row_reason(w: &World) -> String {
-    let pairs = samples(w);
-    match Fabric::of(&pairs) {
-        Ok(_) => "none".into(),
-        Err(e) if w.bodies.len() < 2 => format!("{} bodies; {e}", w.bodies.len()),
-        Err(e) => e.to_string(),
-    }
-}
-
-/// A state's row, its fabric (if it has one) and its rose.
+/// A state's row, its fabric (or why it has none) and its rose.
 fn state_row(
     w: &World,
     index: usize,
@@ -402,7 +401,7 @@ fn state_row(
     args: &Cli,
     rotations: &mut Option<Rotations>,
     bands: usize,
-) -> (Row, Option<Fabric>, Rose) {
+) -> (Row, Result<Fabric, FabricError>, Rose) {
     let set = samples(w);
     let (z, zm) = coordination(w);
     let (pairs, slide) = sliding(w);
@@ -417,9 +416,10 @@ fn state_row(
         let (p, q) = invariants(s);
         (p > 0.0).then(|| q / p)
     };
-    let fabric = Fabric::of(&set).ok();
+    let fabric = Fabric::of(&set);
+    let found = fabric.as_ref().ok();
     let s = deviator(&only_pairs);
-    let scalars = fabric.as_ref().map(|f| f.scalars(&s));
+    let scalars = found.map(|f| f.scalars(&s));
     let mut rose = Rose::new(bands, 2 * bands);
     for c in &set {
         rose.add(&c.normal, c.force.dot(&c.normal));
@@ -444,9 +444,9 @@ fn state_row(
         a_bt: scalars.map(|a| a[2]),
         a_fn: scalars.map(|a| a[3]),
         a_ft: scalars.map(|a| a[4]),
-        f0: fabric.as_ref().map(|f| f.f0),
-        b0: fabric.as_ref().map(|f| f.b0),
-        ratio_anisotropy: fabric.as_ref().map(|f| f.ratio(&s)),
+        f0: found.map(|f| f.f0),
+        b0: found.map(|f| f.b0),
+        ratio_anisotropy: found.map(|f| f.ratio(&s)),
         ratio_contacts: if pairs > 0 { ratio(&only_pairs) } else { None },
         ratio_contacts_walls: if !w.contacts.is_empty() {
             ratio(&full)
@@ -457,10 +457,7 @@ fn state_row(
         volume,
         p_contacts: volume.map(|v| p_pairs / v),
         q_contacts: volume.map(|v| q_pairs / v),
-        p_fabric: match (&fabric, volume) {
-            (Some(f), Some(v)) => Some(f.pressure(v)),
-            _ => None,
-        },
+        p_fabric: found.zip(volume).map(|(f, v)| f.pressure(v)),
         q_boundary: measure.map(|m| m.sigma1 - m.sigma3),
     };
     (row, fabric, rose)
