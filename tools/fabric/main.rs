@@ -369,7 +369,12 @@ fn rows(args: &Cli, table: &mut Table) -> anyhow::Result<Vec<Kept>> {
                 if peak.as_ref().is_none_or(|(q, _)| key > *q) {
                     peak = Some((key, kept("peak")));
                 }
-                end = Some(kept("end"));
+                // The last state's rose and row are the end's: moved, not copied.
+                end = Some(Kept {
+                    label: "end",
+                    rose,
+                    row,
+                });
                 count += 1;
                 if !args.quiet {
                     progress.tick(count as u64, "states");
