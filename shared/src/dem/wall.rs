@@ -355,11 +355,13 @@ impl Wall {
                     // no deeper).
                     let sides = side_planes(&q, &n);
                     // Quick reject: the body wholly beyond one of the prism's side planes (its
-                    // vertices, or for a large hull its box), so that every face's clipping
-                    // would come out empty.
+                    // vertices, or for a large hull its box and then its lowest vertex, found
+                    // by a climb), so that every face's clipping would come out empty.
                     let beyond = |(m, e): &(Vec3, f64)| match s.climb {
                         None => (0..s.vertices.len()).all(|i| m.dot(&b.vertex(s, i)) > *e),
-                        Some(_) => box_excess(&-m, -e, &b.lo, &b.hi) < 0.0,
+                        Some(_) => {
+                            box_excess(&-m, -e, &b.lo, &b.hi) < 0.0 || -reach_along(s, b, &-m) > *e
+                        }
                     };
                     if sides.iter().any(beyond) {
                         continue;

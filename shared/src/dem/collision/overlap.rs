@@ -835,7 +835,7 @@ pub fn overlap_half_space_within(
             faces_b,
             ..
         } = sc;
-        each_face_behind(clip, side_b, faces_b, sb, b, n, d, |poly| {
+        each_face_behind(clip, side_b, faces_b, sb, b, n, d, &[], |poly| {
             // The clipped faces hold every vertex of the part inside the wall.
             if (sides.iter()).any(|(m, e)| poly.iter().any(|x| m.dot(x) > *e)) {
                 return false;
@@ -873,6 +873,7 @@ fn each_face_behind(
     b: &Posed,
     n: &Vec3,
     d: f64,
+    sides: &[(Vec3, f64)],
     mut piece: impl FnMut(&[Vec3]) -> bool,
 ) -> bool {
     let Clip {
@@ -890,6 +891,10 @@ fn each_face_behind(
             let (v, height) = side_b.point(sb, b, n, -1.0, i as usize);
             poly.push(v);
             dist.push(-height - d);
+        }
+        let beyond = |(m, e): &(Vec3, f64)| poly.iter().all(|x| m.dot(x) > *e);
+        if sides.iter().any(beyond) {
+            continue;
         }
         if clip_with(poly, tmp, dist) && !piece(poly) {
             return false;
@@ -939,7 +944,7 @@ pub fn overlap_behind_facet(
             dist,
             ..
         } = sides_clip;
-        each_face_behind(walk, side_b, faces_b, sb, b, n, d, |poly| {
+        each_face_behind(walk, side_b, faces_b, sb, b, n, d, sides, |poly| {
             cut.clear();
             cut.extend_from_slice(poly);
             if !(sides.iter()).all(|(m, e)| clip(cut, tmp, dist, m, *e)) {
