@@ -15,13 +15,14 @@ mid=$(date +%s.%N)
 triax --stop-at "$strain" < "$tmp/start.jsonl" > "$tmp/rest.jsonl" 2> "$tmp/loading.log"
 end=$(date +%s.%N)
 step0=$(grep -o '"step":[0-9]*' "$tmp/start.jsonl" | tail -1 | cut -d: -f2)
+steps_c=$(grep -o '"consolidation_steps":[0-9]*' "$tmp/start.jsonl" | tail -1 | cut -d: -f2)
 step1=$(grep -o '"step":[0-9]*' "$tmp/rest.jsonl" | tail -1 | cut -d: -f2)
 dt=$(grep -o '"dt":[0-9.e-]*' "$tmp/start.jsonl" | head -1 | cut -d: -f2)
 rate=$(grep -o '"rate":[0-9.e-]*' "$tmp/start.jsonl" | head -1 | cut -d: -f2)
-awk -v c0="$start" -v c1="$mid" -v c2="$end" -v s0="$step0" \
+awk -v c0="$start" -v c1="$mid" -v c2="$end" -v s0="$step0" -v sc="$steps_c" \
     -v s1="$step1" -v dt="$dt" -v rate="$rate" -v strain="$strain" -v spec="$spec" 'BEGIN {
   c = c1 - c0; l = c2 - c1; per = (s1 - s0) / l;
   full = 0.15 / rate / dt;
-  printf "bench-triax %s: consolidation %d steps in %.0f s; loading %d steps to %s in %.0f s (%.1f steps/s)\n", spec, s0, c, s1 - s0, strain, l, per;
+  printf "bench-triax %s: consolidation %d steps in %.0f s; loading %d steps to %s in %.0f s (%.1f steps/s)\n", spec, sc, c, s1 - s0, strain, l, per;
   printf "bench-triax: projected test to 15 %% at %s /s: %.0f loading steps, %.0f min with the consolidation\n", rate, full, (c + full / per) / 60 }'
 grep "step time" "$tmp/loading.log" | sed 's/^triax:/bench-triax: loading/'

@@ -39,9 +39,9 @@ $(PAPER)/all.csv: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)
 	    sed 's/^/$(call group_name,$(word 1,$(subst -, ,$(r)))),$(word 2,$(subst -, ,$(r))),/' ;) ) > $@
 
 $(PAPER)/summary.csv: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)
-	( echo "group,seed,level,e50_mpa,poisson,friction_angle,dilatancy_angle,peak_q_kpa,peak_strain,final_volumetric_strain,steps,wall_clock" ; \
+	( echo "group,seed,level,e50_mpa,poisson,friction_angle,dilatancy_angle,peak_q_kpa,peak_strain,final_volumetric_strain,consolidation_steps,loading_steps,wall_clock" ; \
 	  $(foreach r,$(PAPER_RUNS),f=$(PAPER)/$(r).triax.json; \
-	    echo "$(call group_name,$(word 1,$(subst -, ,$(r)))),$(word 2,$(subst -, ,$(r))),$(LEVEL_$(word 1,$(subst -, ,$(r)))),$$(awk "BEGIN{print $$($(call summary_field,$$f,e50))/1e6}"),$$($(call summary_field,$$f,poisson_ratio)),$$($(call summary_field,$$f,friction_angle)),$$($(call summary_field,$$f,dilatancy_angle)),$$(awk "BEGIN{print $$($(call summary_field,$$f,peak_q))/1e3}"),$$($(call summary_field,$$f,peak_strain)),$$($(call summary_field,$$f,final_volumetric_strain)),$$($(call summary_field,$$f,steps)),$$($(call summary_field,$$f,wall_clock))" ;) ) > $@
+	    echo "$(call group_name,$(word 1,$(subst -, ,$(r)))),$(word 2,$(subst -, ,$(r))),$(LEVEL_$(word 1,$(subst -, ,$(r)))),$$(awk "BEGIN{print $$($(call summary_field,$$f,e50))/1e6}"),$$($(call summary_field,$$f,poisson_ratio)),$$($(call summary_field,$$f,friction_angle)),$$($(call summary_field,$$f,dilatancy_angle)),$$(awk "BEGIN{print $$($(call summary_field,$$f,peak_q))/1e3}"),$$($(call summary_field,$$f,peak_strain)),$$($(call summary_field,$$f,final_volumetric_strain)),$$($(call summary_field,$$f,consolidation_steps)),$$($(call summary_field,$$f,loading_steps)),$$($(call summary_field,$$f,wall_clock))" ;) ) > $@
 
 paper: $(PAPER)/all.csv $(PAPER)/summary.csv
 	plot --x nominal_strain --y q_boundary --series group --stats --band minmax \

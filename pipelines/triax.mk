@@ -26,7 +26,7 @@ $(OUT)/triax-all.csv: $(foreach g,$(GROUPS),$(OUT)/triax-$(g).jsonl)
 	  $(foreach g,$(GROUPS),tail -n +2 $(OUT)/triax-$(g).csv | sed 's/^/$(subst ip,I_P,$(subst ab,Ab_,$(g))),/' ;) ) > $@
 
 # The summaries as a table: group, level, E50 (MPa), Poisson's ratio, angles (degrees).
-summary_field = sed -E 's/.*"$(2)":(-?[0-9.eE+-]+).*/\1/' $(1)
+summary_field = sed -nE 's/.*"$(2)":(-?[0-9.eE+-]+).*/\1/p' $(1)
 $(OUT)/triax-summary.csv: $(foreach g,$(GROUPS),$(OUT)/triax-$(g).jsonl)
 	( echo "group,level,e50_mpa,poisson,friction_angle,dilatancy_angle,peak_q_kpa,peak_strain,final_volumetric_strain" ; \
 	  $(foreach g,$(GROUPS),echo "$(subst ip,I_P,$(subst ab,Ab_,$(g))),$(LEVEL_$(g)),$$(awk "BEGIN{print $$($(call summary_field,$(OUT)/triax-$(g).json,e50))/1e6}"),$$($(call summary_field,$(OUT)/triax-$(g).json,poisson_ratio)),$$($(call summary_field,$(OUT)/triax-$(g).json,friction_angle)),$$($(call summary_field,$(OUT)/triax-$(g).json,dilatancy_angle)),$$(awk "BEGIN{print $$($(call summary_field,$(OUT)/triax-$(g).json,peak_q))/1e3}"),$$($(call summary_field,$(OUT)/triax-$(g).json,peak_strain)),$$($(call summary_field,$(OUT)/triax-$(g).json,final_volumetric_strain))" ;) ) > $@

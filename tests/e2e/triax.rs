@@ -108,6 +108,24 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
     ] {
         assert!(s[key].as_f64().is_some_and(f64::is_finite), "{key}: {s}");
     }
+    // The test's own steps: consolidation's from the specimen to the first measurement,
+    // loading's from there to the last frame (pack's steps are not counted).
+    let step = |r: &serde_json::Value| r["step"].as_u64().unwrap();
+    let clock = records(specimen())
+        .into_iter()
+        .find(|r| r["type"] == "clock");
+    let (start, first) = (step(&clock.unwrap()), step(measures[0]));
+    assert_eq!(
+        s["consolidation_steps"].as_u64(),
+        Some(first - start),
+        "{s}"
+    );
+    assert_eq!(
+        s["loading_steps"].as_u64(),
+        Some(step(frames[2]) - first),
+        "{s}"
+    );
+    assert_eq!(s["steps"].as_u64(), Some(step(frames[2]) - start), "{s}");
     let table = std::fs::read_to_string(&csv).unwrap();
     assert_eq!(table.lines().count(), 12);
     // The last frame is a dem state with the membrane: dem runs on from it.

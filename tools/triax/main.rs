@@ -437,7 +437,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
             test.consolidate(2_000, &mut report)?;
             say(format!(
                 "consolidated in {} steps ({:.1} s); loading at {} /s to axial strain {}",
-                test.world.step,
+                test.progress.consolidation_steps.unwrap_or_default(),
                 clock.elapsed().as_secs_f64(),
                 test.params.rate,
                 test.params.final_strain
@@ -566,9 +566,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let summary = triax::summarize(&series);
     if let Some(s) = &summary {
         say(format!(
-            "peak q {:.4e} Pa at axial strain {:.4}; E50 {:.4e} Pa; Poisson's ratio {:.3}; friction angle {:.2} deg; dilatancy angle {:.2} deg; final volumetric strain {:.4e}; {} steps in {:.1} s",
+            "peak q {:.4e} Pa at axial strain {:.4}; E50 {:.4e} Pa; Poisson's ratio {:.3}; friction angle {:.2} deg; dilatancy angle {:.2} deg; final volumetric strain {:.4e}; {} steps of loading; {:.1} s",
             s.peak_q, s.peak_strain, s.e50, s.poisson_ratio, s.friction_angle, s.dilatancy_angle,
-            s.final_volumetric_strain, test.world.step, clock.elapsed().as_secs_f64()
+            s.final_volumetric_strain, test_steps(test.world.step, test.progress.start_step), clock.elapsed().as_secs_f64()
         ));
     }
     if let Some(path) = &args.summary {
@@ -577,7 +577,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
             None => serde_json::json!({}),
         };
         line["particles"] = serde_json::json!(test.world.bodies.len());
-        line["steps"] = serde_json::json!(test.world.step);
+        let loading = test_steps(test.world.step, test.progress.start_step);
+        line["loading_steps"] = serde_json::json!(loading);
+        if let Some(c) = test.progress.consolidation_steps {
+            line["consolidation_steps"] = serde_json::json!(c);
+            line["steps"] = serde_json::json!(c + loading);
+        }
         line["dt"] = serde_json::json!(test.world.dt);
         line["wall_clock"] = serde_json::json!(clock.elapsed().as_secs_f64());
         line["params"] = serde_json::to_value(&test.params)?;

@@ -273,6 +273,9 @@ pub struct Progress {
     pub frames: u64,
     /// The step at which loading started.
     pub start_step: u64,
+    /// The steps consolidation took (absent in streams written before it was recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub consolidation_steps: Option<u64>,
 }
 
 /// What the test measures, every `every` of axial strain (SI units, compression positive).
@@ -455,6 +458,7 @@ impl Triax {
                 measures: 0,
                 frames: 0,
                 start_step: 0,
+                consolidation_steps: None,
             },
             world,
             params,
@@ -750,6 +754,7 @@ impl Triax {
             measures: 0,
             frames: 0,
             start_step: self.world.step,
+            consolidation_steps: Some(self.world.step - start),
         };
         Ok(())
     }
