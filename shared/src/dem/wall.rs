@@ -28,6 +28,7 @@
 //! centroid, so that it makes no moment about the axis.
 
 use crate::dem::collision::broad::overlap as overlap_boxes;
+use crate::dem::collision::gjk::{separating_gap, Hints, Points};
 use crate::dem::collision::overlap::{
     overlap_behind_facet, overlap_half_space_kept, overlap_half_space_within, overlap_parts,
     reach_along, Beyond, Overlap, WallFound,
@@ -222,6 +223,39 @@ fn spots(spots: &[Spot]) -> (Overlap, Vec3, Vec3) {
     (overlap, normal, couple)
 }
 
+/// From this many vertices a body's test against a facet's prism starts with GJK
+/// ([`apart_from_prism`]); below, the walk over its faces behind the plane costs less. On one
+/// thread, the quick triaxial tests' loading from 5 to 6 %: Ab_3 (770 vertices a particle on
+/// average) 1.72x faster with it, Ab_2 (194) 1.18x, Ab_1 (50) 0.98x; the paper-scale I_P
+/// test's from 3 to 3.5 % (16) 0.84x.
+const PRISM_GJK_MIN: usize = 100;
+
+/// True when body `b` (a posed `s`) is shown apart from the prism behind triangle `q` (unit
+/// normal `n`, the solid side behind): wholly in front of the plane, or separated from the
+/// prism cut as deep as `b` reaches behind it by a gap that GJK certifies (exact supports, see
+/// [`separating_gap`]). Then the body's overlap with the prism is empty. A body reaching behind
+/// the plane within each side plane alone may still miss the prism: its part behind a facet
+/// that a wrapping membrane tilts lies beside the facet, and finding that out by clipping costs
+/// a walk over every face behind the plane.
+fn apart_from_prism(s: &Shape, b: &Posed, q: &[Vec3; 3], n: &Vec3) -> bool {
+    // How far b reaches behind the plane n . x = n . q[0].
+    let behind = reach_along(s, b, &-n) + n.dot(&q[0]);
+    if behind <= 0.0 {
+        return true;
+    }
+    // Twice that deep: the prism holds all of b's part behind the plane whatever the round-off.
+    let down = -n * (2.0 * behind);
+    let prism = [q[0], q[1], q[2], q[0] + down, q[1] + down, q[2] + down];
+    let centre = (q[0] + q[1] + q[2]) / 3.0 + down / 2.0;
+    let a = Points {
+        points: &prism,
+        climb: None,
+        posed: None,
+    };
+    let mut hints: Hints = [None, None];
+    separating_gap(a, Points::posed(s, b), &(b.pos - centre), 0.0, &mut hints).is_some()
+}
+
 impl Wall {
     /// A plane through `point` whose solid side is opposite `normal`.
     pub fn plane(point: Vec3, normal: Vec3) -> Wall {
@@ -364,6 +398,9 @@ impl Wall {
                         }
                     };
                     if sides.iter().any(beyond) {
+                        continue;
+                    }
+                    if s.vertices.len() >= PRISM_GJK_MIN && apart_from_prism(s, b, &q, &n) {
                         continue;
                     }
                     if let Some((v, c, cap)) = overlap_behind_facet(s, b, &n, n.dot(&q[0]), &sides)
@@ -1058,7 +1095,8 @@ mod tests {
     /// The facet overlap from B's faces behind the plane alone ([`overlap_behind_facet`]) is
     /// the clipping of B by the facet's prism: random triangles (some slivers) against a cube,
     /// a polyhedron and a large hull (climbed) of sizes from a tenth to ten times theirs, at
-    /// random poses across and near their planes, grazing and deep.
+    /// random poses across and near their planes, grazing and deep; and where GJK shows B apart
+    /// from the prism ([`apart_from_prism`]), the clipping finds nothing.
     #[test]
     fn a_facet_overlap_from_the_faces_behind_equals_the_prism_clipping() {
         use rand::{RngCore, SeedableRng};
@@ -1076,7 +1114,7 @@ mod tests {
             Shape::from_mesh(&hull).unwrap(),
         ];
         assert!(shapes[2].climb.is_some(), "a large hull");
-        let (mut both, mut neither, mut worst) = (0, 0, [[0.0f64; 3]; 3]);
+        let (mut both, mut neither, mut apart, mut worst) = (0, 0, 0, [[0.0f64; 3]; 3]);
         for k in 0..20_000 {
             let s = &shapes[k % 3];
             let scale = 10f64.powf(2.0 * u() - 1.0) / s.radius;
@@ -1106,6 +1144,14 @@ mod tests {
             }
             let clipped = facet_overlap_with(&q, &n, &sides, 2.0 * radius, s, &b);
             let behind = overlap_behind_facet(s, &b, &n, d, &sides);
+            // GJK's certificate that B misses the prism holds.
+            if apart_from_prism(s, &b, &q, &n) {
+                apart += 1;
+                assert!(
+                    clipped.is_none_or(|(v, ..)| v < 1e-14 * crate::math::cube(radius)),
+                    "case {k}: shown apart, yet {clipped:?}"
+                );
+            }
             match (clipped, behind) {
                 (Some((v, c, cap)), Some((w, x, cap2))) => {
                     both += 1;
@@ -1146,10 +1192,10 @@ mod tests {
             }
         }
         assert!(
-            both > 3000 && neither > 3000,
-            "{both} overlapping, {neither} not: too few to test"
+            both > 3000 && neither > 3000 && apart > 1000,
+            "{both} overlapping, {neither} not ({apart} shown apart by GJK): too few to test"
         );
-        eprintln!("worst relative differences (volume, centroid, cap); B meeting the plane, B wholly behind it, slivers: {worst:?}");
+        eprintln!("worst relative differences (volume, centroid, cap); B meeting the plane, B wholly behind it, slivers: {worst:?}; {apart} shown apart by GJK");
     }
 
     /// A tube of facets around the z axis, its nodes jittered (no two triangles alike, none
