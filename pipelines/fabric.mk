@@ -79,7 +79,7 @@ paper-fabric: $(PAPER)/fabric-all.csv
 	  --size 1200x500 --xlabel "axial strain ln(H0/H)" --ylabel "mean rotation (rad),accumulated (rad)" \
 	  --title "Fig. 15 at the paper's scale" < $< > $(PAPER)/fig15.png
 	cat $(foreach g,$(GROUPS),$(PAPER)/$(g)-$(firstword $(PAPER_SEEDS)).roses.obj) | render --cols 3 \
-	  --same-scale --size 1200x1500 --no-edges --elevation 15 \
+	  --same-scale --size 1200x$(shell echo $$((375 * $(words $(GROUPS))))) --no-edges --elevation 15 \
 	  --title "Fig. 16 at the paper's scale: roses of the normal contact force" \
 	  > $(PAPER)/fig16.png
 	plot --x nominal_strain --y a_c,a_bn,a_fn,a_ft --series group --stats --band minmax --size 1600x500 \

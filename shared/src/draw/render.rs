@@ -240,6 +240,7 @@ pub fn render(cells: &[Cell], opts: &Options) -> Image {
             (cx0 + cw / 2) as f32,
             (cy0 + label_h / 2) as f32,
             (label_h as f32 * 0.55).min(22.0 * SS as f32),
+            cw as f32 * 0.96,
         );
     }
     if let Some(t) = &opts.title {
@@ -250,6 +251,7 @@ pub fn render(cells: &[Cell], opts: &Options) -> Image {
             (w / 2) as f32,
             (title_h / 2) as f32,
             title_h as f32 * 0.5,
+            w as f32 * 0.96,
         );
     }
     downsample(&cv, opts.width as usize, opts.height as usize)
@@ -381,12 +383,31 @@ fn draw_line(
 }
 
 /// Draws `text` centred at (cx, cy) in black.
-fn draw_text(cv: &mut Canvas, font: &FontRef, text: &str, cx: f32, cy: f32, px: f32) {
+/// Draws `text` centred on (`cx`, `cy`) at `px` pixels, smaller where it would be wider than
+/// `max_width`.
+fn draw_text(
+    cv: &mut Canvas,
+    font: &FontRef,
+    text: &str,
+    cx: f32,
+    cy: f32,
+    px: f32,
+    max_width: f32,
+) {
+    let advance = |px: f32| -> f32 {
+        let scaled = font.as_scaled(PxScale::from(px));
+        (text.chars())
+            .map(|c| scaled.h_advance(font.glyph_id(c)))
+            .sum()
+    };
+    let full = advance(px);
+    let px = if full > max_width && full > 0.0 {
+        px * max_width / full
+    } else {
+        px
+    };
     let scaled = font.as_scaled(PxScale::from(px));
-    let width: f32 = text
-        .chars()
-        .map(|c| scaled.h_advance(font.glyph_id(c)))
-        .sum();
+    let width = advance(px);
     let mut x = cx - width / 2.0;
     let baseline = cy + (scaled.ascent() + scaled.descent()) / 2.0;
     for c in text.chars() {
