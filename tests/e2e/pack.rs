@@ -41,6 +41,7 @@ fn pack_rejects_broken_templates_and_arguments() {
         ("--prep-friction", "-0.1"),
         ("--tolerance", "nan"),
         ("--count", "0"),
+        ("--count", "2"),
         ("--damping", "1"),
         ("--kn", "0"),
     ] {

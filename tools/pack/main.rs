@@ -92,7 +92,7 @@ struct Cli {
     /// What a size is
     #[arg(long, value_enum, default_value_t = Measure::Equivalent)]
     size_measure: Measure,
-    /// Number of particles (default: enough to fill the container at --porosity)
+    /// Number of particles, at least 6 (default: enough to fill the container at --porosity)
     #[arg(long)]
     count: Option<usize>,
     /// Porosity the default count is worked out for
@@ -276,6 +276,10 @@ fn flagged(e: PackError) -> anyhow::Error {
     }
 }
 
+/// The fewest particles a specimen may have (`--count`): with two or four, the walls servo
+/// to the pressure on particles that rattle between them and never settle.
+const MIN_COUNT: usize = 6;
+
 fn run(args: Cli) -> anyhow::Result<()> {
     cli::check_output(args.summary.as_deref(), "--summary")?;
     if args.every == 0 {
@@ -306,6 +310,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
             Container::Box
         }
     };
+    if args.count.is_some_and(|n| (1..MIN_COUNT).contains(&n)) {
+        return Err(cli::usage(format!(
+            "--count must be at least {MIN_COUNT}: fewer particles do not hold the servo walls, \
+             which chase them until --max-steps"
+        )));
+    }
     let params = Params {
         container,
         diameter: args.diameter.unwrap_or(0.3),
