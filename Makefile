@@ -7,7 +7,7 @@ export PATH := $(BIN):$(PATH)
 SHELL := /bin/bash
 .SHELLFLAGS := -o pipefail -ec
 
-.PHONY: all figures build test bench clean paper fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax \
+.PHONY: all figures build test fuzz bench clean paper fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax \
   fig13 fig14 fig15 fig16 fig17 fig18
 all: figures
 figures: fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax \
@@ -29,6 +29,11 @@ include pipelines/study.mk
 
 test:
 	cargo test --release --locked --workspace
+
+# The readers' fuzzers (docs/GUIDE.md): FUZZ_SECONDS each, or 1e7 inputs.
+FUZZ_SECONDS ?= 3600
+fuzz:
+	pipelines/fuzz.sh $(FUZZ_SECONDS) 10000000
 
 clean:
 	rm -rf $(OUT)

@@ -28,11 +28,13 @@
 //!   stress-force-fabric relation, rotations, roses).
 //! - [`draw`]: shaded pictures of meshes and line charts of tables.
 //! - [`math`]: type aliases and numeric helpers; [`cli`]: what every tool shares (exit codes,
-//!   broken pipes, stream helpers); [`text`]: excerpts of input in messages.
+//!   broken pipes, stream helpers); [`text`]: excerpts of input in messages; [`fuzz`]: what
+//!   the fuzzers feed each reader.
 
 pub mod cli;
 pub mod dem;
 pub mod draw;
+pub mod fuzz;
 pub mod geometry;
 pub mod lab;
 pub mod math;
