@@ -71,6 +71,16 @@ fn tick(x: f64) -> String {
     }
 }
 
+/// A tick at `x` on an axis `span` long: zero where the axis' arithmetic left only round-off
+/// (a tick at -6.9e-18 is the tick at 0).
+fn snap(x: f64, span: f64) -> f64 {
+    if x.abs() <= 1e-9 * span.abs() {
+        0.0
+    } else {
+        x
+    }
+}
+
 /// Pictures of one height side by side, left to right, as one picture.
 pub fn side_by_side(images: &[Image]) -> Image {
     let height = images.iter().map(|i| i.height).max().unwrap_or(0);
@@ -148,10 +158,10 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
                     String::new()
                 }
             } else {
-                tick(*x)
+                tick(snap(*x, x1 - x0 + 2.0 * padx))
             }
         };
-        let fmt_y = |y: &f64| tick(*y);
+        let fmt_y = |y: &f64| tick(snap(*y, y1 - y0 + 2.0 * pady));
         ctx.configure_mesh()
             .x_label_formatter(&fmt_x)
             .y_label_formatter(&fmt_y)
@@ -293,6 +303,13 @@ pub fn group_stats(rows: &[(String, f64, f64)]) -> BTreeMap<String, Vec<(f64, St
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tick_of_round_off_reads_zero_and_a_small_axis_keeps_its_ticks() {
+        assert_eq!(tick(snap(-6.938893903907228e-18, 0.06)), "0");
+        assert_eq!(tick(snap(2e-12, 1e-10)), "2e-12");
+        assert_eq!(tick(snap(0.02, 0.06)), "0.02");
+    }
 
     #[test]
     fn stats_of_known_values() {
