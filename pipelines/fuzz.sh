@@ -6,7 +6,7 @@
 # end: commit it), crashes land in fuzz/artifacts/TARGET and are copied to
 # fuzz/regressions/TARGET, which the test suite replays (shared/tests/fuzz_corpus.rs).
 # Installs cargo-fuzz from crates.io when it is missing. Prints each target's executions,
-# coverage and crashes, also into fuzz/report.txt.
+# coverage and crashes, also appended to fuzz/report.txt.
 # Usage: pipelines/fuzz.sh [SECONDS [RUNS [TARGET...]]]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,7 +15,7 @@ shift $(( $# < 2 ? $# : 2 ))
 targets=${*:-obj_stream dem_state peer_scene plot_csv}
 command -v cargo-fuzz > /dev/null || cargo install --locked cargo-fuzz
 rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
-: > fuzz/report.txt
+
 for t in $targets; do
   mkdir -p "fuzz/corpus/$t" "fuzz/regressions/$t"
   log=$(mktemp)

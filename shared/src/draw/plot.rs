@@ -129,11 +129,20 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
         if !x0.is_finite() {
             return Err("nothing to plot: no finite points".into());
         }
-        let padx = ((x1 - x0) * 0.04).max(1e-9);
-        let pady = ((y1 - y0) * 0.08).max(1e-9);
+        // A margin of the range, at least a millionth of the values' size (a single value of
+        // 1e300 padded by 1e-9 would leave an axis of no width in floating point).
+        let pad = |lo: f64, hi: f64, share: f64| {
+            ((hi - lo) * share)
+                .max(1e-6 * lo.abs().max(hi.abs()))
+                .max(1e-9)
+        };
+        let (padx, pady) = (pad(x0, x1, 0.04), pad(y0, y1, 0.08));
         // The axes' ends and their ticks need the padded range in floating point.
         let ends = [x0 - padx, x1 + padx, y0 - pady, y1 + pady];
-        if !(ends.iter().all(|e| e.is_finite()) && (x1 - x0).is_finite() && (y1 - y0).is_finite()) {
+        if !(ends.iter().all(|e| e.is_finite())
+            && (ends[1] - ends[0]).is_finite()
+            && (ends[3] - ends[2]).is_finite())
+        {
             return Err(format!(
                 "the values span more than a float can hold (x from {x0:e} to {x1:e}, y from {y0:e} to {y1:e})"
             ));
