@@ -105,7 +105,13 @@ mod tests {
         let cube = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
                     f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n";
         assert_eq!(cube_shape().vertices.len(), 8);
-        for data in [cube.as_bytes(), b"", b"\xff\xfe", b"f 1 2 3\n", b"v 1e308 0 0\n"] {
+        for data in [
+            cube.as_bytes(),
+            b"",
+            b"\xff\xfe",
+            b"f 1 2 3\n",
+            b"v 1e308 0 0\n",
+        ] {
             obj_stream(data);
             dem_state(data);
             peer_scene(data);
