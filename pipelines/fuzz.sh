@@ -19,8 +19,8 @@ rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly -
 for t in $targets; do
   mkdir -p "fuzz/corpus/$t" "fuzz/regressions/$t"
   log=$(mktemp)
-  # -fork: each input in a child, so a crash is kept and the run goes on; the exit status
-  # says whether anything crashed, which the lines below report.
+  # libFuzzer stops at the first crash or timeout, which it writes to fuzz/artifacts/TARGET:
+  # fix it, keep it (below) and run again.
   (cd fuzz && cargo +nightly fuzz run "$t" "corpus/$t" "seeds/$t" -- \
       -max_total_time="$seconds" -runs="$runs" -timeout=10 -rss_limit_mb=2048 \
       -max_len=65536 -print_final_stats=1) > "$log" 2>&1 || true

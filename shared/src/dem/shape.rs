@@ -27,6 +27,8 @@ pub enum ShapeError {
     TooManyVertices(String, usize),
     #[error("shape '{0}' has no volume ({1:e})")]
     NoVolume(String, f64),
+    #[error("shape '{0}' is too large for its mass properties in floating point (volume {1:e}): scale it down")]
+    Overflow(String, f64),
 }
 
 /// A convex template in its principal frame, unit scale and density.
@@ -322,7 +324,15 @@ impl Shape {
         if props.volume.is_nan() || props.volume <= 0.0 {
             return Err(ShapeError::NoVolume(mesh.name.clone(), props.volume));
         }
+        // Coordinates beyond ~1e100 overflow the inertia (a size to the fifth power), and the
+        // principal frame of an infinite tensor is not a rotation.
+        if !(props.volume.is_finite() && props.inertia.iter().all(|x| x.is_finite())) {
+            return Err(ShapeError::Overflow(mesh.name.clone(), props.volume));
+        }
         let (rot, moments) = principal_axes(&props.inertia);
+        if !(rot.iter().all(|x| x.is_finite()) && moments.iter().all(|x| x.is_finite())) {
+            return Err(ShapeError::Overflow(mesh.name.clone(), props.volume));
+        }
         let vertices: Vec<Vec3> = h
             .mesh
             .vertices

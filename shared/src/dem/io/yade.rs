@@ -90,7 +90,8 @@ pub fn read_peer_scene<R: BufRead, S: BufRead>(
             ));
         }
         let nv = nums[6] as usize;
-        if nums.len() != 7 + 3 * nv || nv < 4 {
+        let holds = (nv.checked_mul(3)).and_then(|k| k.checked_add(7));
+        if holds != Some(nums.len()) || nv < 4 {
             return Err(err(
                 n,
                 format!(
