@@ -321,7 +321,7 @@ impl Shape {
         let h = hull::convex_hull(&mesh.vertices)
             .map_err(|e| ShapeError::Hull(mesh.name.clone(), e))?;
         let props = MassProps::of(&h.mesh);
-        if props.volume.is_nan() || props.volume <= 0.0 {
+        if props.volume <= 0.0 {
             return Err(ShapeError::NoVolume(mesh.name.clone(), props.volume));
         }
         // Coordinates beyond ~1e100 overflow the inertia (a size to the fifth power), and the
@@ -737,6 +737,19 @@ fn plane_offset(d: f64, n: &Vec3, pos: &Vec3, scale: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A hard case the OBJ fuzzer found: a shape so large that its inertia overflows is refused
+    /// with a message, not fitted a rotation from NaN (which never converges); one merely
+    /// large is taken.
+    #[test]
+    fn a_shape_too_large_for_its_inertia_is_refused_and_a_large_one_taken() {
+        let huge = crate::geometry::mesh::cube(1e120);
+        let e = Shape::from_mesh(&huge).unwrap_err();
+        assert!(matches!(e, ShapeError::Overflow(..)), "{e}");
+        assert!(e.to_string().contains("too large"), "{e}");
+        let large = Shape::from_mesh(&crate::geometry::mesh::cube(1e50)).unwrap();
+        assert!((large.radius / (1e50 * 3f64.sqrt()) - 1.0).abs() < 1e-12);
+    }
     use crate::geometry::mesh::cube;
     use approx::assert_relative_eq;
 
