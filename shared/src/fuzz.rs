@@ -7,7 +7,9 @@
 use crate::dem::io::{state, yade};
 use crate::dem::shape::Shape;
 use crate::draw::plot;
+use crate::geometry::mesh::cube;
 use crate::geometry::obj;
+use std::sync::OnceLock;
 
 /// The OBJ stream: every object read, then made a shape as `dem` and `pack` make one.
 pub fn obj_stream(data: &[u8]) {
@@ -32,8 +34,7 @@ pub fn peer_scene(data: &[u8]) {
         Some(k) => (&data[..k], Some(&data[k + 1..])),
         None => (data, None),
     };
-    let cube = cube_shape();
-    let _ = yade::read_peer_scene(scene, settled, Some(std::slice::from_ref(&cube)));
+    let _ = yade::read_peer_scene(scene, settled, Some(std::slice::from_ref(cube_shape())));
     let _ = yade::read_peer_scene(scene, settled, None);
 }
 
@@ -76,24 +77,10 @@ pub fn plot_csv(data: &[u8]) {
     let _ = plot::draw(&chart, 160, 120);
 }
 
-fn cube_shape() -> Shape {
-    let corners = [
-        [-1.0, -1.0, -1.0],
-        [1.0, -1.0, -1.0],
-        [1.0, 1.0, -1.0],
-        [-1.0, 1.0, -1.0],
-        [-1.0, -1.0, 1.0],
-        [1.0, -1.0, 1.0],
-        [1.0, 1.0, 1.0],
-        [-1.0, 1.0, 1.0],
-    ];
-    let mut text = String::new();
-    for c in corners {
-        text += &format!("v {} {} {}\n", c[0], c[1], c[2]);
-    }
-    text += "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n";
-    let objects = obj::read_all(text.as_bytes()).expect("a cube");
-    Shape::from_mesh(&objects[0].mesh).expect("a cube's shape")
+/// The peer scene's one template: the project's cube, made once for all inputs.
+fn cube_shape() -> &'static Shape {
+    static CUBE: OnceLock<Shape> = OnceLock::new();
+    CUBE.get_or_init(|| Shape::from_mesh(&cube(1.0)).expect("a cube's shape"))
 }
 
 #[cfg(test)]
@@ -102,8 +89,7 @@ mod tests {
 
     #[test]
     fn each_entry_takes_good_and_broken_input() {
-        let cube = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
-                    f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n";
+        let cube = obj::to_string(&[cube(1.0)]);
         assert_eq!(cube_shape().vertices.len(), 8);
         for data in [
             cube.as_bytes(),

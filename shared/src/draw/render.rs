@@ -401,13 +401,13 @@ fn draw_text(
             .sum()
     };
     let full = advance(px);
-    let px = if full > max_width && full > 0.0 {
-        px * max_width / full
+    let (px, width) = if full > max_width && full > 0.0 {
+        let px = px * max_width / full;
+        (px, advance(px))
     } else {
-        px
+        (px, full)
     };
     let scaled = font.as_scaled(PxScale::from(px));
-    let width = advance(px);
     let mut x = cx - width / 2.0;
     let baseline = cy + (scaled.ascent() + scaled.descent()) / 2.0;
     for c in text.chars() {
