@@ -395,6 +395,44 @@ fn impossible_requests_are_refused_before_the_work() {
     );
 }
 
+/// Numbers a tool's arithmetic cannot hold are refused on reading: a cube of 1e200 (whose hull
+/// tests and inertia overflow) in every tool that reads meshes, and a pressure that would press
+/// the particles into each other by more than their size.
+#[test]
+fn numbers_beyond_a_tools_arithmetic_are_refused_on_reading() {
+    let cube = String::from_utf8(super::repo_file("tests/fixtures/cube.obj")).unwrap();
+    let huge: String = cube
+        .lines()
+        .map(|l| match l.strip_prefix("v ") {
+            Some(xyz) => {
+                let big: Vec<String> = xyz
+                    .split_whitespace()
+                    .map(|c| format!("{}", c.parse::<f64>().unwrap() * 1e200))
+                    .collect();
+                format!("v {}\n", big.join(" "))
+            }
+            None => format!("{l}\n"),
+        })
+        .collect();
+    for (tool, args) in [
+        ("abrade", &["--levels", "1"][..]),
+        ("simplify", &["--vertices", "6"][..]),
+        ("roundness", &[][..]),
+        ("render", &[][..]),
+        ("pack", &["--count", "10"][..]),
+    ] {
+        fails(tool, args, huge.as_bytes(), 1, &["line", "beyond 1e50"]);
+    }
+    let templates = super::ok("polygen", &["--faces", "6..8", "--count", "3"], b"");
+    fails(
+        "pack",
+        &["--pressure", "1e15", "--count", "20"],
+        &templates,
+        2,
+        &["--pressure", "p d / kn"],
+    );
+}
+
 /// A dem state says each thing once: a second material, clock or energy record, a second
 /// contact of one pair, a negative clock time, an empty facets wall, a contact whose normal is
 /// not a unit vector: each is an error naming its line.

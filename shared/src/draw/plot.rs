@@ -106,11 +106,27 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
     {
         let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let all = chart.series.iter().flat_map(|s| {
-            s.points
+        // Only finite points are drawn and set the axes: a point with a coordinate that is not
+        // finite has no place on them, and its other coordinate, left out of the ranges, would
+        // map far outside the picture (an overflow in plotters' pixel arithmetic).
+        let finite = |x: f64, lo: f64, hi: f64| x.is_finite() && lo.is_finite() && hi.is_finite();
+        let drawn: Vec<(Vec<(f64, f64)>, Vec<(f64, f64, f64)>)> = chart
+            .series
+            .iter()
+            .map(|s| {
+                let points = s.points.iter().copied();
+                let band = s.band.iter().copied();
+                (
+                    points.filter(|&(x, y)| finite(x, y, y)).collect(),
+                    band.filter(|&(x, lo, hi)| finite(x, lo, hi)).collect(),
+                )
+            })
+            .collect();
+        let all = drawn.iter().flat_map(|(points, band)| {
+            points
                 .iter()
                 .map(|&(x, y)| (x, y, y))
-                .chain(s.band.iter().copied())
+                .chain(band.iter().copied())
         });
         let (mut x0, mut x1, mut y0, mut y1) = (
             f64::INFINITY,
@@ -119,12 +135,10 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
             f64::NEG_INFINITY,
         );
         for (x, lo, hi) in all {
-            if x.is_finite() && lo.is_finite() && hi.is_finite() {
-                x0 = x0.min(x);
-                x1 = x1.max(x);
-                y0 = y0.min(lo);
-                y1 = y1.max(hi);
-            }
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(lo);
+            y1 = y1.max(hi);
         }
         if !x0.is_finite() {
             return Err("nothing to plot: no finite points".into());
@@ -181,11 +195,11 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
             .light_line_style(RGBColor(235, 235, 235))
             .draw()
             .map_err(|e| e.to_string())?;
-        for s in &chart.series {
+        for (s, (_, band)) in chart.series.iter().zip(&drawn) {
             let c = COLORS[s.color % COLORS.len()];
-            if s.band.len() > 1 {
-                let mut poly: Vec<(f64, f64)> = s.band.iter().map(|&(x, lo, _)| (x, lo)).collect();
-                poly.extend(s.band.iter().rev().map(|&(x, _, hi)| (x, hi)));
+            if band.len() > 1 {
+                let mut poly: Vec<(f64, f64)> = band.iter().map(|&(x, lo, _)| (x, lo)).collect();
+                poly.extend(band.iter().rev().map(|&(x, _, hi)| (x, hi)));
                 ctx.draw_series(std::iter::once(Polygon::new(
                     poly,
                     c.mix(if s.dashed { 0.08 } else { 0.16 }),
@@ -193,17 +207,17 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
                 .map_err(|e| e.to_string())?;
             }
         }
-        for s in &chart.series {
+        for (s, (points, _)) in chart.series.iter().zip(&drawn) {
             let c = COLORS[s.color % COLORS.len()];
             let style = c.stroke_width(2);
-            let drawn = if s.dashed {
-                ctx.draw_series(DashedLineSeries::new(s.points.clone(), 8, 5, style))
+            let line = if s.dashed {
+                ctx.draw_series(DashedLineSeries::new(points.clone(), 8, 5, style))
             } else {
-                ctx.draw_series(LineSeries::new(s.points.clone(), style))
+                ctx.draw_series(LineSeries::new(points.clone(), style))
             }
             .map_err(|e| e.to_string())?;
             let dashed = s.dashed;
-            drawn.label(&s.label).legend(move |(x, y)| {
+            line.label(&s.label).legend(move |(x, y)| {
                 // Coordinates after EmptyElement::at are relative to (x, y).
                 let (a, b) = if dashed {
                     ((0, 7), (11, 18))
@@ -214,7 +228,7 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
                     + PathElement::new(vec![(a.0, 0), (a.1, 0)], c.stroke_width(2))
                     + PathElement::new(vec![(b.0, 0), (b.1, 0)], c.stroke_width(2))
             });
-            ctx.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))
+            ctx.draw_series(points.iter().map(|&p| Circle::new(p, 3, c.filled())))
                 .map_err(|e| e.to_string())?;
         }
         // A legend only where a series has a name to show.
@@ -342,6 +356,29 @@ mod tests {
         assert_eq!(a[0].0, -1.0);
         assert_eq!(a[1].1.mean, 6.0);
         assert_eq!(g.keys().collect::<Vec<_>>(), ["a", "b"]);
+    }
+
+    #[test]
+    fn a_point_that_is_not_finite_is_left_out() {
+        let chart = Chart {
+            title: "t".into(),
+            xlabel: "x".into(),
+            ylabel: "y".into(),
+            series: vec![Series {
+                label: "s".into(),
+                points: vec![
+                    (0.0, 0.0),
+                    (1e308, f64::NAN),
+                    (1.0, 1.0),
+                    (f64::INFINITY, 0.5),
+                ],
+                band: vec![(0.0, -1.0, 1.0), (-1e308, f64::NAN, 0.0), (1.0, 0.0, 2.0)],
+                color: 0,
+                dashed: false,
+            }],
+        };
+        let img = draw(&chart, 160, 120).unwrap();
+        assert!(img.rgb.iter().any(|&v| v < 128), "nothing drawn");
     }
 
     #[test]

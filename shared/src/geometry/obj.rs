@@ -31,6 +31,11 @@ pub const MAX_COMMENTS: usize = 16 << 20;
 /// The most attributes (`#@ key=value`) one object may carry.
 pub const MAX_ATTRIBUTES: usize = 10_000;
 
+/// The largest coordinate magnitude the reader takes. A shape's moments of inertia go as the
+/// fifth power of its size and a hull's orientation tests as the third: beyond this they
+/// overflow a float, and the tools would write infinities or a broken hull.
+pub const MAX_COORD: f64 = 1e50;
+
 /// An OBJ reading error: an I/O failure, or bad text at a line, in an object.
 #[derive(Debug, Error)]
 pub enum ObjError {
@@ -228,6 +233,13 @@ impl<R: BufRead> ObjReader<R> {
                     if !x.is_finite() {
                         return Err(self.err(format!(
                             "vertex coordinate '{}' is not finite",
+                            excerpt(tok)
+                        )));
+                    }
+                    if x.abs() > MAX_COORD {
+                        return Err(self.err(format!(
+                            "vertex coordinate '{}' is beyond {MAX_COORD:e} (the range in \
+                             which volumes and inertias stay finite)",
                             excerpt(tok)
                         )));
                     }

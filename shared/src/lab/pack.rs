@@ -299,6 +299,21 @@ impl Params {
                 rule: format!("must be 16 to {MAX_SEGMENTS}, got {}", self.segments),
             });
         }
+        // The pressure's force on a largest particle, about p d^2, presses it into a
+        // neighbour by p d^2 / kn: beyond a few per cent of d the contact law of rigid bodies
+        // describes nothing, and the overlaps outgrow the particles.
+        let overlap = self.pressure * self.size_max / self.material.kn;
+        if overlap > MAX_PRESSURE_OVERLAP {
+            return Err(PackError::Param {
+                field: "pressure",
+                rule: format!(
+                    "{:e} Pa would press a largest particle ({} m) into its neighbours by about \
+                     {:.3e} of its size at kn {:e} N/m (p d / kn); at most {MAX_PRESSURE_OVERLAP} \
+                     is modelled",
+                    self.pressure, self.size_max, overlap, self.material.kn
+                ),
+            });
+        }
         Ok(())
     }
 
@@ -432,6 +447,10 @@ pub fn cloud(templates: Vec<Shape>, p: &Params) -> Result<World, PackError> {
 
 /// The most facets of the cylinder (its cost grows with them; 128 is the default).
 pub const MAX_SEGMENTS: u32 = 10_000;
+
+/// The largest overlap, as a share of the largest particle's size, that the pressure may make
+/// (p d / kn): the defaults make 4e-5.
+pub const MAX_PRESSURE_OVERLAP: f64 = 0.05;
 
 /// Tries per particle before [`place`] gives up.
 const TRIES: usize = 20_000;
