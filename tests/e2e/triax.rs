@@ -78,7 +78,11 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
     assert_eq!(recs[0]["format"], "granular-triax");
     let measures: Vec<&serde_json::Value> =
         recs.iter().filter(|r| r["type"] == "measure").collect();
-    assert_eq!(measures.len(), 11, "a measurement every 0.2 % to 2 %");
+    assert_eq!(
+        measures.len(),
+        16,
+        "measurements at 0.2 % / 32, / 16, / 8, / 4, / 2, then every 0.2 % from 0 to 2 %"
+    );
     let q: Vec<f64> = measures
         .iter()
         .map(|m| m["q_boundary"].as_f64().unwrap())
@@ -127,7 +131,26 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
     );
     assert_eq!(s["steps"].as_u64(), Some(step(frames[2]) - start), "{s}");
     let table = std::fs::read_to_string(&csv).unwrap();
-    assert_eq!(table.lines().count(), 12);
+    assert_eq!(table.lines().count(), 17);
+    // The table's nominal strains are the ones each measurement was due at.
+    let mut rows = csv::Reader::from_reader(table.as_bytes());
+    let column = rows
+        .headers()
+        .unwrap()
+        .iter()
+        .position(|h| h == "nominal_strain");
+    let nominal: Vec<f64> = rows
+        .records()
+        .map(|r| r.unwrap()[column.unwrap()].parse().unwrap())
+        .collect();
+    let due: Vec<f64> = [0.0, 1.0 / 32.0, 1.0 / 16.0, 0.125, 0.25, 0.5]
+        .into_iter()
+        .map(|f| f * 0.002)
+        .chain((1..=10).map(|k| k as f64 * 0.002))
+        .collect();
+    for (n, d) in nominal.iter().zip(&due) {
+        assert!((n - d).abs() < 1e-12, "nominal strains {nominal:?}");
+    }
     // The last frame is a dem state with the membrane: dem runs on from it.
     let later = ok("dem", &["--frame", "last", "--steps", "20"], &out);
     assert!(String::from_utf8_lossy(&later).contains("\"membrane\""));

@@ -53,6 +53,10 @@ struct Cli {
     /// Axial strain between measurements
     #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
     every: f64,
+    /// Measure the first --every also at --every / 2^k, k from this down to 1 (q's steep
+    /// elastic start, which E50 and the initial Poisson's ratio need resolved)
+    #[arg(long, default_value_t = 5)]
+    opening: u32,
     /// Axial strain between frames (complete states)
     #[arg(long, default_value_t = 5e-3, allow_negative_numbers = true)]
     frame_every: f64,
@@ -177,6 +181,7 @@ fn params_of(args: &Cli) -> Params {
         membrane_stiffness: args.membrane_stiffness,
         membrane_damping: args.membrane_damping,
         every: args.every,
+        opening: args.opening,
         frame_every: args.frame_every,
         inertia_scaling: !args.no_inertia_scaling,
         safety: args.safety,
@@ -542,10 +547,11 @@ fn run(args: Cli) -> anyhow::Result<()> {
     }
     out.flush()?;
     if let Some(path) = &args.csv {
+        let schedule = triax::Schedule::of(&test.params);
         let mut w =
             csv::Writer::from_path(path).with_context(|| format!("writing {}", path.display()))?;
         for m in &series {
-            w.serialize(CsvRow::of(m, test.params.every))?;
+            w.serialize(CsvRow::of(m, &schedule))?;
         }
         w.flush()?;
     }
@@ -641,13 +647,13 @@ struct CsvRow {
 }
 
 impl CsvRow {
-    fn of(m: &Measure, every: f64) -> CsvRow {
+    fn of(m: &Measure, schedule: &triax::Schedule) -> CsvRow {
         let [sxx, syy, szz, sxy, sxz, syz] = m.stress;
         CsvRow {
             step: m.step,
             time: m.time,
             axial_strain: m.axial_strain,
-            nominal_strain: (m.axial_strain / every).round() * every,
+            nominal_strain: schedule.nominal(m.axial_strain),
             volumetric_strain: m.volumetric_strain,
             height: m.height,
             volume: m.volume,

@@ -60,6 +60,12 @@ pub struct Params {
     /// Axial strain between measurements, and between frames.
     pub every: f64,
     pub frame_every: f64,
+    /// The first `every` of loading is also measured at `every / 2^k` for k from `opening` down
+    /// to 1: q rises to about a third of its peak within the first 0.1 % of strain (the
+    /// specimen's elastic response), and E50 and the initial Poisson's ratio need that rise
+    /// resolved. 0 in streams written before it was a setting.
+    #[serde(default)]
+    pub opening: u32,
     /// Scale the bodies' inertia for a quasi-static test.
     pub inertia_scaling: bool,
     /// Time step over the critical one.
@@ -89,6 +95,7 @@ impl Default for Params {
             membrane_damping: 0.7,
             every: 1e-3,
             frame_every: 5e-3,
+            opening: 5,
             inertia_scaling: true,
             safety: 0.2,
             tolerance: 0.02,
@@ -149,6 +156,12 @@ impl Params {
             if !(v > 0.0 && v.is_finite()) {
                 return bad(field, format!("must be a positive number, got {v}"));
             }
+        }
+        if self.opening > 30 {
+            return bad(
+                "opening",
+                format!("must be at most 30 halvings, got {}", self.opening),
+            );
         }
         if let Some(e) = self.edge {
             if !(e > 0.0 && e.is_finite()) {
@@ -779,18 +792,19 @@ impl Triax {
         let end = stop_at.map_or(self.params.final_strain, |s| {
             s.min(self.params.final_strain)
         });
-        let (every, frame_every) = (self.params.every, self.params.frame_every);
+        let frame_every = self.params.frame_every;
+        let schedule = Schedule::of(&self.params);
         on_pool(|| loop {
             let [zb, zt] = self.platens();
             let strain = (self.progress.height0 / (zt - zb)).ln();
             let finished = strain >= end;
-            let measure_due = strain >= self.progress.measures as f64 * every;
+            let measure_due = strain >= schedule.due(self.progress.measures);
             let frame_due = strain >= self.progress.frames as f64 * frame_every;
             if measure_due || finished {
                 let m = self.measure();
                 self.check_contained()?;
                 if measure_due {
-                    self.progress.measures = (strain / every).floor() as u64 + 1;
+                    self.progress.measures = schedule.next_after(strain);
                 }
                 sink(Event::Measure(&m));
             }
@@ -857,6 +871,57 @@ pub struct Summary {
     pub final_axial_strain: f64,
     pub final_volumetric_strain: f64,
     pub measures: usize,
+}
+
+/// When loading's measurements are due: measurement 0 at strain 0, then the `opening` ones at
+/// `every / 2^k` (k from `opening` down to 1), then every `every`.
+#[derive(Clone, Copy, Debug)]
+pub struct Schedule {
+    pub every: f64,
+    pub opening: u32,
+}
+
+impl Schedule {
+    pub fn of(params: &Params) -> Schedule {
+        Schedule {
+            every: params.every,
+            opening: params.opening,
+        }
+    }
+
+    /// The strain at which measurement `m` is due.
+    pub fn due(&self, m: u64) -> f64 {
+        let k = u64::from(self.opening);
+        match m {
+            0 => 0.0,
+            m if m <= k => self.every * 0.5f64.powi((k + 1 - m) as i32),
+            m => (m - k) as f64 * self.every,
+        }
+    }
+
+    /// The first measurement due after `strain` (one measured at `strain` covers every
+    /// measurement due at or before it).
+    pub fn next_after(&self, strain: f64) -> u64 {
+        let k = u64::from(self.opening);
+        let regular = (strain / self.every).floor() as u64 + 1 + k;
+        if strain >= self.every {
+            regular
+        } else {
+            (1..=k).find(|&m| self.due(m) > strain).unwrap_or(k + 1)
+        }
+    }
+
+    /// The due strain nearest `strain`: the one a measurement there was taken for (a step
+    /// past it), or the next one for the last measurement a hair short of it.
+    pub fn nominal(&self, strain: f64) -> f64 {
+        let m = self.next_after(strain);
+        let (before, after) = (self.due(m.saturating_sub(1)), self.due(m));
+        if after - strain < strain - before {
+            after
+        } else {
+            before
+        }
+    }
 }
 
 /// Measurements either side of a point over which the dilation rate is fitted.
@@ -937,4 +1002,54 @@ pub fn summarize(series: &[Measure]) -> Option<Summary> {
         final_volumetric_strain: last.volumetric_strain,
         measures: series.len(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Without an opening the measurements are due every `every`, as in streams written before
+    /// the opening was a setting; with one, the first `every` is halved `opening` times, and a
+    /// measurement taken a step past a due strain is due next at the following one.
+    #[test]
+    fn the_schedule_halves_the_first_interval_and_keeps_the_rest() {
+        let plain = Schedule {
+            every: 1e-3,
+            opening: 0,
+        };
+        for m in 0..300u64 {
+            assert_eq!(plain.due(m), m as f64 * 1e-3);
+            let past = plain.due(m) + 1e-6;
+            assert_eq!(plain.next_after(past), (past / 1e-3).floor() as u64 + 1);
+            assert_eq!(plain.nominal(past), plain.due(m));
+        }
+        let fine = Schedule {
+            every: 1e-3,
+            opening: 5,
+        };
+        let dues: Vec<f64> = (0..9).map(|m| fine.due(m)).collect();
+        let want = [
+            0.0,
+            1e-3 / 32.0,
+            1e-3 / 16.0,
+            1e-3 / 8.0,
+            1e-3 / 4.0,
+            5e-4,
+            1e-3,
+            2e-3,
+            3e-3,
+        ];
+        for (d, w) in dues.iter().zip(want) {
+            assert!((d - w).abs() < 1e-18, "{dues:?}");
+        }
+        for m in 0..200u64 {
+            let past = fine.due(m) + 1e-7;
+            assert_eq!(fine.next_after(past), m + 1, "after measurement {m}");
+            assert_eq!(fine.nominal(past), fine.due(m));
+        }
+        // A step that crosses two due strains takes one measurement for both.
+        assert_eq!(fine.next_after(0.3e-3), 5);
+        // The last measurement a hair short of its due strain is named after it.
+        assert_eq!(fine.nominal(0.15 - 1e-12), fine.due(155));
+    }
 }
