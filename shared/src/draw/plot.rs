@@ -237,7 +237,10 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
                 .background_style(WHITE.mix(0.85))
                 .border_style(BLACK.mix(0.3))
                 .label_font(("sans-serif", 13))
-                .position(SeriesLabelPosition::LowerRight)
+                .position(legend_corner(
+                    &drawn,
+                    [x0 - padx, x1 + padx, y0 - pady, y1 + pady],
+                ))
                 .draw()
                 .map_err(|e| e.to_string())?;
         }
@@ -248,6 +251,35 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
         height,
         rgb: buf,
     })
+}
+
+/// The corner of the plot whose quarter-width, quarter-height box holds the fewest points (the
+/// legend's place, so that it hides the least data); lower right among equals.
+fn legend_corner(
+    drawn: &[(Vec<(f64, f64)>, Vec<(f64, f64, f64)>)],
+    [x0, x1, y0, y1]: [f64; 4],
+) -> SeriesLabelPosition {
+    let (wx, wy) = (0.35 * (x1 - x0), 0.3 * (y1 - y0));
+    let corners = [
+        (SeriesLabelPosition::LowerRight, x1 - wx, x1, y0, y0 + wy),
+        (SeriesLabelPosition::UpperRight, x1 - wx, x1, y1 - wy, y1),
+        (SeriesLabelPosition::LowerLeft, x0, x0 + wx, y0, y0 + wy),
+        (SeriesLabelPosition::UpperLeft, x0, x0 + wx, y1 - wy, y1),
+    ];
+    let inside = |&(_, a, b, c, d): &(SeriesLabelPosition, f64, f64, f64, f64)| {
+        let points = drawn.iter().flat_map(|(p, _)| p.iter());
+        points
+            .filter(|&&(x, y)| x >= a && x <= b && y >= c && y <= d)
+            .count()
+    };
+    let mut best = (usize::MAX, SeriesLabelPosition::LowerRight);
+    for c in &corners {
+        let n = inside(c);
+        if n < best.0 {
+            best = (n, c.0.clone());
+        }
+    }
+    best.1
 }
 
 /// Summary statistics of one group of values.
@@ -356,6 +388,25 @@ mod tests {
         assert_eq!(a[0].0, -1.0);
         assert_eq!(a[1].1.mean, 6.0);
         assert_eq!(g.keys().collect::<Vec<_>>(), ["a", "b"]);
+    }
+
+    #[test]
+    fn the_legend_goes_to_the_emptiest_corner() {
+        let falling: Vec<(f64, f64)> = (0..=10).map(|i| (i as f64, -(i as f64))).collect();
+        let drawn = vec![(falling, Vec::new())];
+        let ends = [0.0, 10.0, -10.0, 0.0];
+        // A line from upper left to lower right leaves the other two corners empty.
+        let corner = legend_corner(&drawn, ends);
+        assert!(
+            matches!(
+                corner,
+                SeriesLabelPosition::UpperRight | SeriesLabelPosition::LowerLeft
+            ),
+            "{corner:?}"
+        );
+        let rising: Vec<(f64, f64)> = (0..=10).map(|i| (i as f64, i as f64 - 10.0)).collect();
+        let corner = legend_corner(&[(rising, Vec::new())], ends);
+        assert_eq!(corner, SeriesLabelPosition::LowerRight);
     }
 
     #[test]
