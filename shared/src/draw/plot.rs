@@ -110,7 +110,7 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
         // finite has no place on them, and its other coordinate, left out of the ranges, would
         // map far outside the picture (an overflow in plotters' pixel arithmetic).
         let finite = |x: f64, lo: f64, hi: f64| x.is_finite() && lo.is_finite() && hi.is_finite();
-        let drawn: Vec<(Vec<(f64, f64)>, Vec<(f64, f64, f64)>)> = chart
+        let drawn: Vec<Drawn> = chart
             .series
             .iter()
             .map(|s| {
@@ -253,12 +253,12 @@ pub fn draw(chart: &Chart, width: u32, height: u32) -> Result<Image, String> {
     })
 }
 
+/// A series' finite points and band, as drawn.
+type Drawn = (Vec<(f64, f64)>, Vec<(f64, f64, f64)>);
+
 /// The corner of the plot whose quarter-width, quarter-height box holds the fewest points (the
 /// legend's place, so that it hides the least data); lower right among equals.
-fn legend_corner(
-    drawn: &[(Vec<(f64, f64)>, Vec<(f64, f64, f64)>)],
-    [x0, x1, y0, y1]: [f64; 4],
-) -> SeriesLabelPosition {
+fn legend_corner(drawn: &[Drawn], [x0, x1, y0, y1]: [f64; 4]) -> SeriesLabelPosition {
     let (wx, wy) = (0.35 * (x1 - x0), 0.3 * (y1 - y0));
     let corners = [
         (SeriesLabelPosition::LowerRight, x1 - wx, x1, y0, y0 + wy),

@@ -307,7 +307,7 @@ fn fill_triangle(
                 hi = lo - 1.0;
             }
         }
-        if !(hi >= lo) {
+        if hi < lo {
             continue;
         }
         let first = ((lo - 0.5).ceil() - 1.0).max(xmin as f64) as usize;
@@ -548,6 +548,7 @@ mod tests {
     /// diagonal edges) and shapes partly outside the picture included.
     #[test]
     fn row_spans_cover_what_testing_every_pixel_covers() {
+        use crate::math::square;
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         let (w, h) = (64, 48);
@@ -591,7 +592,7 @@ mod tests {
                     );
                     let t = (((px - a[0]) * dx + (py - a[1]) * dy) / (dx * dx + dy * dy))
                         .clamp(0.0, 1.0);
-                    let d = ((px - a[0] - t * dx).powi(2) + (py - a[1] - t * dy).powi(2)).sqrt();
+                    let d = (square(px - a[0] - t * dx) + square(py - a[1] - t * dy)).sqrt();
                     assert_eq!(
                         lines.color[y * w + x] == [0.0; 3],
                         d <= 1.25,

@@ -894,7 +894,7 @@ impl Schedule {
         let k = u64::from(self.opening);
         match m {
             0 => 0.0,
-            m if m <= k => self.every * 0.5f64.powi((k + 1 - m) as i32),
+            m if m <= k => self.every / (1u64 << (k + 1 - m)) as f64,
             m => (m - k) as f64 * self.every,
         }
     }
