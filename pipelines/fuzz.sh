@@ -3,7 +3,7 @@
 # peer_scene, plot_csv), libFuzzer through cargo fuzz on the nightly toolchain for SECONDS
 # (default 3600) or RUNS executions (default 10 000 000), whichever ends first, with limits per
 # input (10 s, 2 GiB, 64 KiB long). The corpus grows in fuzz/corpus/TARGET (minimised at the
-# end: commit it), crashes land in fuzz/artifacts/TARGET and are copied to
+# end: commit it), crashes land in fuzz/artifacts/TARGET and are moved to
 # fuzz/regressions/TARGET, which the test suite replays (shared/tests/fuzz_corpus.rs).
 # Installs cargo-fuzz from crates.io when it is missing. Prints each target's executions,
 # coverage and crashes, also appended to fuzz/report.txt.
@@ -29,7 +29,7 @@ for t in $targets; do
   crashes=0
   for a in fuzz/artifacts/"$t"/*; do
     [ -e "$a" ] || continue
-    cp "$a" "fuzz/regressions/$t/"
+    mv -f "$a" "fuzz/regressions/$t/"
     crashes=$((crashes + 1))
   done
   (cd fuzz && cargo +nightly fuzz cmin "$t" "corpus/$t" > /dev/null 2>&1) || true
