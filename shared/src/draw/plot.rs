@@ -409,42 +409,42 @@ mod tests {
         assert_eq!(corner, SeriesLabelPosition::LowerRight);
     }
 
-    #[test]
-    fn a_point_that_is_not_finite_is_left_out() {
-        let chart = Chart {
+    /// A chart of one series.
+    fn chart_of(points: Vec<(f64, f64)>, band: Vec<(f64, f64, f64)>) -> Chart {
+        Chart {
             title: "t".into(),
             xlabel: "x".into(),
             ylabel: "y".into(),
             series: vec![Series {
                 label: "s".into(),
-                points: vec![
-                    (0.0, 0.0),
-                    (1e308, f64::NAN),
-                    (1.0, 1.0),
-                    (f64::INFINITY, 0.5),
-                ],
-                band: vec![(0.0, -1.0, 1.0), (-1e308, f64::NAN, 0.0), (1.0, 0.0, 2.0)],
-                color: 0,
-                dashed: false,
+                points,
+                band,
+                ..Default::default()
             }],
-        };
+        }
+    }
+
+    #[test]
+    fn a_point_that_is_not_finite_is_left_out() {
+        let chart = chart_of(
+            vec![
+                (0.0, 0.0),
+                (1e308, f64::NAN),
+                (1.0, 1.0),
+                (f64::INFINITY, 0.5),
+            ],
+            vec![(0.0, -1.0, 1.0), (-1e308, f64::NAN, 0.0), (1.0, 0.0, 2.0)],
+        );
         let img = draw(&chart, 160, 120).unwrap();
         assert!(img.rgb.iter().any(|&v| v < 128), "nothing drawn");
     }
 
     #[test]
     fn a_chart_draws() {
-        let chart = Chart {
-            title: "t".into(),
-            xlabel: "x".into(),
-            ylabel: "y".into(),
-            series: vec![Series {
-                label: "s".into(),
-                points: vec![(0.0, 1.0), (1.0, 2.0)],
-                band: vec![(0.0, 0.5, 1.5), (1.0, 1.5, 2.5)],
-                ..Default::default()
-            }],
-        };
+        let chart = chart_of(
+            vec![(0.0, 1.0), (1.0, 2.0)],
+            vec![(0.0, 0.5, 1.5), (1.0, 1.5, 2.5)],
+        );
         let img = draw(&chart, 300, 200).unwrap();
         assert!(img.rgb.iter().any(|&v| v != 255));
         assert!(draw(&Chart::default(), 300, 200).is_err());
