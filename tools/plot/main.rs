@@ -15,7 +15,11 @@ Examples:
 Without --stats every row is a point and rows of one series are joined in file order. With
 --stats rows are grouped by series and x, and the mean is drawn with a band (--band std: mean
 +- one standard deviation; minmax; p05-p95; none). With two series columns, colour follows the
-first and the second column's later values are dashed.";
+first and the second column's later values are dashed.
+
+Errors: a missing column, a row of another width or a value that is not a number stops with
+the row named and exit 1, no picture written. nan and inf are numbers, left out of the picture;
+values spread wider than a float spans (1e308 and -1e308 on one axis) are refused.";
 
 /// Draws a line chart from a CSV table with a header (standard input) as PNG (standard output).
 #[derive(Parser, Debug)]
