@@ -67,6 +67,8 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
     let (summary, csv) = (dir.join("s.json"), dir.join("m.csv"));
     let mut args = SHORT.to_vec();
     args.extend([
+        "--opening",
+        "5",
         "--summary",
         summary.to_str().unwrap(),
         "--csv",

@@ -54,8 +54,8 @@ struct Cli {
     #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
     every: f64,
     /// Measure the first --every also at --every / 2^k, k from this down to 1 (q's steep
-    /// elastic start, which E50 and the initial Poisson's ratio need resolved)
-    #[arg(long, default_value_t = 5)]
+    /// start, and the transient of the platens' sudden start: docs/models/triax.md)
+    #[arg(long, default_value_t = 0)]
     opening: u32,
     /// Axial strain between frames (complete states)
     #[arg(long, default_value_t = 5e-3, allow_negative_numbers = true)]

@@ -61,9 +61,10 @@ pub struct Params {
     pub every: f64,
     pub frame_every: f64,
     /// The first `every` of loading is also measured at `every / 2^k` for k from `opening` down
-    /// to 1: q rises to about a third of its peak within the first 0.1 % of strain (the
-    /// specimen's elastic response), and E50 and the initial Poisson's ratio need that rise
-    /// resolved. 0 in streams written before it was a setting.
+    /// to 1: q rises to about a third of its peak within the first 0.1 % of strain, and E50
+    /// and the initial Poisson's ratio need that rise resolved. Off (0) by default: it also
+    /// shows the transient of the platens' sudden start (docs/models/triax.md), which the
+    /// summary would take for the peak in a weak specimen.
     #[serde(default)]
     pub opening: u32,
     /// Scale the bodies' inertia for a quasi-static test.
@@ -95,7 +96,7 @@ impl Default for Params {
             membrane_damping: 0.7,
             every: 1e-3,
             frame_every: 5e-3,
-            opening: 5,
+            opening: 0,
             inertia_scaling: true,
             safety: 0.2,
             tolerance: 0.02,
