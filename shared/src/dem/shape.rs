@@ -29,7 +29,14 @@ pub enum ShapeError {
     NoVolume(String, f64),
     #[error("shape '{0}' is too large for its mass properties in floating point (volume {1:e}): scale it down")]
     Overflow(String, f64),
+    #[error("shape '{0}' is too slender for its inertia in floating point (principal moments {1:e}, {2:e}, {3:e}; the least must be at least {MIN_MOMENT_RATIO:e} of the largest, a rod of about 1:45 000)")]
+    Slender(String, f64, f64, f64),
 }
+
+/// The least principal moment over the largest that a shape may have: a rod whose length is
+/// about 45 000 times its width. The rounding of a more slender shape's inertia tensor is of
+/// the order of its least moment, so its principal frame and moments are noise.
+pub const MIN_MOMENT_RATIO: f64 = 1e-9;
 
 /// A convex template in its principal frame, unit scale and density.
 #[derive(Clone, Debug)]
@@ -333,6 +340,10 @@ impl Shape {
         if !(rot.iter().all(|x| x.is_finite()) && moments.iter().all(|x| x.is_finite())) {
             return Err(ShapeError::Overflow(mesh.name.clone(), props.volume));
         }
+        if !(moments[0] >= MIN_MOMENT_RATIO * moments[2]) {
+            let [a, b, c] = [moments[0], moments[1], moments[2]];
+            return Err(ShapeError::Slender(mesh.name.clone(), a, b, c));
+        }
         let vertices: Vec<Vec3> = h
             .mesh
             .vertices
@@ -346,7 +357,7 @@ impl Shape {
             .map(|(n, d)| d - n.dot(&props.centroid))
             .collect();
         let radius = vertices.iter().map(|v| v.norm()).fold(0.0, f64::max);
-        let frame = UnitQuaternion::from_matrix(&rot);
+        let frame = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rot));
         let (vertex_face_start, vertex_faces) = incidence(&h.mesh.face_start, &h.mesh.face_verts);
         let climb = Climb::of(
             &vertices,
@@ -588,8 +599,15 @@ pub fn principal_axes(inertia: &Mat3) -> (Mat3, Vec3) {
     let mut order = [0usize, 1, 2];
     order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
     let mut rot = Mat3::zeros();
-    for (k, &i) in order.iter().enumerate() {
+    for (k, &i) in order.iter().enumerate().take(2) {
         let mut axis: Vec3 = eig.eigenvectors.column(i).into_owned();
+        // The solver's vectors are unit and orthogonal only to its own tolerance (a tensor with
+        // moments 1e53 and 0 gave norms of 1 + 7e-16): made so to rounding here, so that the
+        // frame converts to a quaternion directly.
+        if k == 1 {
+            axis -= rot.column(0).dot(&axis) * rot.column(0);
+        }
+        axis.normalize_mut();
         let big = (0..3)
             .max_by(|&a, &b| axis[a].abs().total_cmp(&axis[b].abs()))
             .unwrap_or(0);
@@ -968,6 +986,62 @@ mod tests {
             let back = s.frame_in_mesh * v + s.centroid_in_mesh;
             assert!(m.vertices.iter().any(|w| (w - back).norm() < 1e-9));
         }
+    }
+
+    #[test]
+    fn a_principal_frame_half_a_turn_from_the_mesh_is_exact() {
+        // A 2 x 3 x 1 box along the axes: its principal frame is the mesh's y, x and -z axes,
+        // half a turn about (1, 1, 0), where an iterative fit from the identity has no slope.
+        let m = crate::geometry::mesh::cuboid(Vec3::new(1.0, 1.5, 0.5));
+        let s = Shape::from_mesh(&m).unwrap();
+        let turn = s.frame_in_mesh.to_rotation_matrix();
+        let expect = Mat3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
+        assert_relative_eq!(*turn.matrix(), expect, epsilon = 1e-15);
+        for v in &s.vertices {
+            let back = s.frame_in_mesh * v + s.centroid_in_mesh;
+            assert!(m.vertices.iter().any(|w| (w - back).norm() < 1e-12));
+        }
+    }
+
+    #[test]
+    fn principal_axes_of_an_extreme_tensor_are_a_rotation() {
+        // The inertia of a sliver 1.3e18 long and about 1 wide (found by fuzzing): the eigen
+        // solver's vectors came with norms 1 + 7e-16, on which an iterative conversion to a
+        // quaternion never converged.
+        let inertia = Mat3::new(
+            1.185185185185121e53,
+            5.6909614583332305e22,
+            -2.158333333333294e18,
+            5.6909614583332305e22,
+            0.0,
+            2.1336947916666277e22,
+            -2.158333333333294e18,
+            2.1336947916666277e22,
+            1.185185185185121e53,
+        );
+        let (rot, _) = principal_axes(&inertia);
+        assert_relative_eq!(rot.transpose() * rot, Mat3::identity(), epsilon = 4e-16);
+        assert_relative_eq!(rot.determinant(), 1.0, epsilon = 4e-16);
+    }
+
+    #[test]
+    fn a_shape_too_slender_for_its_inertia_is_refused() {
+        // A tetrahedron 1e18 long and 1 wide: its least moment is lost in the rounding of the
+        // others. One 1e3 long is kept.
+        let sliver = |length: f64| PolyMesh {
+            name: "sliver".into(),
+            vertices: vec![
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+                Vec3::new(0.3, 0.3, length),
+            ],
+            ..PolyMesh::default()
+        };
+        let e = Shape::from_mesh(&sliver(1e18)).unwrap_err();
+        assert!(matches!(e, ShapeError::Slender(..)), "{e}");
+        assert!(e.to_string().contains("too slender"), "{e}");
+        assert!(Shape::from_mesh(&sliver(1e3)).is_ok());
     }
 
     #[test]
