@@ -67,8 +67,6 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
     let (summary, csv) = (dir.join("s.json"), dir.join("m.csv"));
     let mut args = SHORT.to_vec();
     args.extend([
-        "--opening",
-        "5",
         "--summary",
         summary.to_str().unwrap(),
         "--csv",
@@ -159,6 +157,43 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// The platens' sudden start (`--ramp 0`) sends a stress wave through the specimen: q at
+/// 0.006 % of strain is several times what it is when they come up to speed over 0.2 % (the
+/// default), where q stays low until the specimen is loaded (149 against 20-28 kPa here).
+#[test]
+fn a_smooth_start_sends_no_stress_wave_through_the_specimen() {
+    let early_q = |ramp: &str| -> Vec<f64> {
+        let args = [
+            "--final-strain",
+            "0.002",
+            "--rate",
+            "2",
+            "--every",
+            "0.002",
+            "--ramp",
+            ramp,
+        ];
+        records(&ok("triax", &args, specimen()))
+            .iter()
+            .filter(|r| r["type"] == "measure")
+            .map(|m| m["q_boundary"].as_f64().unwrap())
+            .collect()
+    };
+    let (sudden, smooth) = (early_q("0"), early_q("0.002"));
+    let largest = |q: &[f64]| q.iter().copied().fold(f64::MIN, f64::max);
+    assert_eq!((sudden.len(), smooth.len()), (7, 7), "0, 5 halvings, 0.2 %");
+    assert!(
+        largest(&smooth) < 0.5 * largest(&sudden),
+        "largest q in the first 0.2 %: smooth start {smooth:?}, sudden {sudden:?}"
+    );
+    assert!(
+        smooth[1] < 0.3 * sudden[1],
+        "q at 0.006 %: smooth {}, sudden {}",
+        smooth[1],
+        sudden[1]
+    );
+}
+
 /// A run stopped at a frame and resumed from its stream writes, together, the bytes of the
 /// run in one go; 1 and 2 threads write the same bytes.
 #[test]
@@ -231,6 +266,9 @@ fn triax_rejects_what_is_not_a_cylindrical_specimen_and_nonsense_options() {
         ("--membrane-poisson", "0.6"),
         ("--safety", "2"),
         ("--stop-at", "-1"),
+        ("--ramp", "-0.001"),
+        ("--ramp", "inf"),
+        ("--opening", "31"),
     ] {
         rejects(&[flag, value], specimen(), 2, &[flag]);
     }

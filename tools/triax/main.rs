@@ -6,7 +6,9 @@ use shared::cli;
 use shared::dem::io::state::{self, Item, StateStream};
 use shared::dem::io::vtk::Snapshots;
 use shared::dem::world::World;
-use shared::lab::triax::{self, Event, Measure, Params, Progress, Triax, TriaxError};
+use shared::lab::triax::{
+    self, Event, Measure, Params, Progress, Triax, TriaxError, OPENING, RAMP,
+};
 use std::io::{BufRead, Write};
 use std::process::ExitCode;
 
@@ -54,9 +56,13 @@ struct Cli {
     #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
     every: f64,
     /// Measure the first --every also at --every / 2^k, k from this down to 1 (q's steep
-    /// start, and the transient of the platens' sudden start: docs/models/triax.md)
-    #[arg(long, default_value_t = 0)]
+    /// elastic start, which E50 and the initial Poisson's ratio need resolved; 0: none)
+    #[arg(long, default_value_t = OPENING)]
     opening: u32,
+    /// Axial strain over which the platens come up to speed at the start of loading (smoothly;
+    /// 0: at once, which sends a stress wave through the specimen: docs/models/triax.md)
+    #[arg(long, default_value_t = RAMP, allow_negative_numbers = true)]
+    ramp: f64,
     /// Axial strain between frames (complete states)
     #[arg(long, default_value_t = 5e-3, allow_negative_numbers = true)]
     frame_every: f64,
@@ -182,6 +188,7 @@ fn params_of(args: &Cli) -> Params {
         membrane_damping: args.membrane_damping,
         every: args.every,
         opening: args.opening,
+        ramp: args.ramp,
         frame_every: args.frame_every,
         inertia_scaling: !args.no_inertia_scaling,
         safety: args.safety,
