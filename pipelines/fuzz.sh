@@ -3,8 +3,9 @@
 # peer_scene, plot_csv), libFuzzer through cargo fuzz on the nightly toolchain for SECONDS
 # (default 3600) or RUNS executions (default 10 000 000), whichever ends first, with limits per
 # input (10 s, 2 GiB, 64 KiB long). The corpus grows in fuzz/corpus/TARGET (minimised at the
-# end: commit it), crashes land in fuzz/artifacts/TARGET and are moved to
-# fuzz/regressions/TARGET, which the test suite replays (shared/tests/fuzz_corpus.rs).
+# end: commit its inputs of 8 KiB or less, which keep the repository small), crashes land
+# in fuzz/artifacts/TARGET and are moved to fuzz/regressions/TARGET, which the test suite
+# replays (shared/tests/fuzz_corpus.rs).
 # Installs cargo-fuzz from crates.io when it is missing. Prints each target's executions,
 # coverage and crashes, also appended to fuzz/report.txt.
 # Usage: pipelines/fuzz.sh [SECONDS [RUNS [TARGET...]]]
