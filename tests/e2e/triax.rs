@@ -106,6 +106,7 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
     for key in [
         "peak_q",
         "e50",
+        "e50_strain",
         "poisson_ratio",
         "friction_angle",
         "dilatancy_angle",

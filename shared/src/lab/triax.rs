@@ -321,7 +321,7 @@ pub struct Progress {
 }
 
 /// What the test measures, every `every` of axial strain (SI units, compression positive).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Measure {
     pub step: u64,
     pub time: f64,
@@ -888,6 +888,10 @@ pub struct Summary {
     pub peak_strain: f64,
     /// Secant modulus at half the peak: `(peak_q / 2) / eps_50`, Pa.
     pub e50: f64,
+    /// `eps_50`, the axial strain where q first reaches half the peak (interpolated between
+    /// measurements): an E50 read within the first 0.1 % depends on the loading rate
+    /// (docs/models/triax.md, the start of loading).
+    pub e50_strain: f64,
     /// `(1 - d eps_v / d eps_a) / 2`, the slope fitted (least squares) over the measurements
     /// up to `eps_50`.
     pub poisson_ratio: f64,
@@ -1024,6 +1028,7 @@ pub fn summarize(series: &[Measure]) -> Option<Summary> {
         peak_q: top.q_boundary,
         peak_strain: top.axial_strain,
         e50: if eps50 > 0.0 { half / eps50 } else { f64::NAN },
+        e50_strain: eps50,
         poisson_ratio: nu,
         friction_angle: degrees((top.sigma1 - top.sigma3) / (top.sigma1 + top.sigma3)),
         dilatancy_angle: degrees(-rate / (2.0 - rate)),
@@ -1037,6 +1042,46 @@ pub fn summarize(series: &[Measure]) -> Option<Summary> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The summary of a series built to known answers: q rises at 100 MPa to 200 kPa at 0.2 %
+    /// and on to 300 kPa at 15 %, so half the peak lies between two measurements (0.15 %);
+    /// eps_v rises at 0.2 eps_a (nu 0.4) to 1 % and then falls at 0.5 (sin psi = 0.2).
+    #[test]
+    fn the_summary_reads_a_known_series() {
+        let series: Vec<Measure> = (0..=150)
+            .map(|k| {
+                let e = k as f64 * 1e-3;
+                let q = if e <= 2e-3 {
+                    1e8 * e
+                } else {
+                    2e5 + (e - 2e-3) * 1e5 / 0.148
+                };
+                let ev = if e <= 0.01 {
+                    0.2 * e
+                } else {
+                    2e-3 - 0.5 * (e - 0.01)
+                };
+                Measure {
+                    axial_strain: e,
+                    volumetric_strain: ev,
+                    sigma1: 1e5 + q,
+                    sigma3: 1e5,
+                    q_boundary: q,
+                    ..Measure::default()
+                }
+            })
+            .collect();
+        let s = summarize(&series).unwrap();
+        assert!((s.peak_q - 3e5).abs() < 1e-6, "{s:?}");
+        assert!((s.peak_strain - 0.15).abs() < 1e-12);
+        assert!((s.e50_strain - 1.5e-3).abs() < 1e-12, "{}", s.e50_strain);
+        assert!((s.e50 - 1e8).abs() < 1e-3, "{}", s.e50);
+        assert!((s.poisson_ratio - 0.4).abs() < 1e-9, "{}", s.poisson_ratio);
+        assert!((s.friction_angle - 0.6f64.asin().to_degrees()).abs() < 1e-9);
+        assert!((s.dilatancy_angle - 0.2f64.asin().to_degrees()).abs() < 1e-9);
+        assert!(s.dilatancy_strain > 0.015, "{}", s.dilatancy_strain);
+        assert!((s.final_volumetric_strain - (2e-3 - 0.5 * 0.14)).abs() < 1e-12);
+    }
 
     /// The platens start from rest and reach full speed, smoothly and monotonically, at the
     /// strain `ramp` (at the full rate from the start the same strain would take half the
