@@ -29,9 +29,17 @@ pub enum HullError {
     TooFewPoints(usize),
     #[error("point {0} has a coordinate that is not finite")]
     NonFinite(usize),
+    #[error("point {0} has a coordinate beyond {MAX_HULL_COORD:e} ({1:e}): the hull's products of coordinates would overflow")]
+    TooLarge(usize, f64),
     #[error("all points lie on one plane (or line): no 3D hull")]
     Flat,
 }
+
+/// The largest coordinate magnitude a hull takes (the OBJ reader's limit too): the squared
+/// length of a cross product of coordinate differences, a fourth power, stays finite below
+/// it. Beyond, a peer scene's vertex of 1.6e198 (found by fuzzing) made infinite normals and
+/// broke the hull's neighbour links.
+pub const MAX_HULL_COORD: f64 = 1e50;
 
 /// A convex hull: a closed polygon mesh (faces counter-clockwise seen from outside), the input
 /// index of each hull vertex, and each face's unit outward normal and offset (`n . x = d`).
@@ -142,6 +150,9 @@ fn triangulated_hull(pts: &[Vec3]) -> Result<Vec<Tri>, HullError> {
     }
     if let Some(i) = pts.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
         return Err(HullError::NonFinite(i));
+    }
+    if let Some(i) = pts.iter().position(|p| p.amax() > MAX_HULL_COORD) {
+        return Err(HullError::TooLarge(i, pts[i].amax()));
     }
     let m = magnitude(pts);
     let mut tris = initial_simplex(pts, m)?;
@@ -707,6 +718,23 @@ mod tests {
             assert!(vh >= vm * (1.0 - 1e-12), "hull {vh} < mesh {vm}");
             assert!(h.mesh.vertices.len() * 2 > m.vertices.len());
         }
+    }
+
+    /// A hard case the peer-scene fuzzer found: a vertex at 1.6e198 made infinite normals and
+    /// a hull whose neighbour links pointed nowhere (an index panic). Refused now; a cube of
+    /// side 1e49 still has its hull.
+    #[test]
+    fn coordinates_beyond_the_hulls_arithmetic_are_refused() {
+        let cube = |h: f64| -> Vec<Vec3> {
+            (0..8)
+                .map(|k: u32| Vec3::new((k & 1) as f64, ((k >> 1) & 1) as f64, (k >> 2) as f64) * h)
+                .collect()
+        };
+        let mut pts = cube(0.01);
+        pts.push(Vec3::new(0.0, -1.6e198, 0.0));
+        assert!(matches!(convex_hull(&pts), Err(HullError::TooLarge(8, _))));
+        let big = convex_hull(&cube(1e49)).unwrap();
+        assert_eq!(big.mesh.face_count(), 6);
     }
 
     #[test]
