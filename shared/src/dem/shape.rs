@@ -757,14 +757,17 @@ mod tests {
     use super::*;
 
     /// A hard case the OBJ fuzzer found: a shape so large that its inertia overflows is refused
-    /// with a message, not fitted a rotation from NaN (which never converges); one merely
-    /// large is taken.
+    /// with a message (its hull's coordinates are beyond the hull's range), not fitted a
+    /// rotation from NaN (which never converges); one merely large is taken.
     #[test]
     fn a_shape_too_large_for_its_inertia_is_refused_and_a_large_one_taken() {
         let huge = crate::geometry::mesh::cube(1e120);
         let e = Shape::from_mesh(&huge).unwrap_err();
-        assert!(matches!(e, ShapeError::Overflow(..)), "{e}");
-        assert!(e.to_string().contains("too large"), "{e}");
+        assert!(
+            matches!(e, ShapeError::Hull(_, HullError::TooLarge(..))),
+            "{e}"
+        );
+        assert!(e.to_string().contains("beyond 1e50"), "{e}");
         let large = Shape::from_mesh(&crate::geometry::mesh::cube(1e50)).unwrap();
         assert!((large.radius / (1e50 * 3f64.sqrt()) - 1.0).abs() < 1e-12);
     }
