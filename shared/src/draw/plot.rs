@@ -272,14 +272,12 @@ fn legend_corner(drawn: &[Drawn], [x0, x1, y0, y1]: [f64; 4]) -> SeriesLabelPosi
             .filter(|&&(x, y)| x >= a && x <= b && y >= c && y <= d)
             .count()
     };
-    let mut best = (usize::MAX, SeriesLabelPosition::LowerRight);
-    for c in &corners {
-        let n = inside(c);
-        if n < best.0 {
-            best = (n, c.0.clone());
-        }
-    }
-    best.1
+    // The first of equals: lower right.
+    let (corner, ..) = corners
+        .iter()
+        .min_by_key(|c| inside(c))
+        .expect("four corners");
+    corner.clone()
 }
 
 /// Summary statistics of one group of values.

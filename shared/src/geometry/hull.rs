@@ -35,11 +35,11 @@ pub enum HullError {
     Flat,
 }
 
-/// The largest coordinate magnitude a hull takes (the OBJ reader's limit too): the squared
-/// length of a cross product of coordinate differences, a fourth power, stays finite below
-/// it. Beyond, a peer scene's vertex of 1.6e198 (found by fuzzing) made infinite normals and
-/// broke the hull's neighbour links.
-pub const MAX_HULL_COORD: f64 = 1e50;
+/// The largest coordinate magnitude a hull takes: the OBJ reader's limit
+/// ([`crate::geometry::obj::MAX_COORD`]), below which the squared length of a cross product of
+/// coordinate differences, a fourth power, stays finite. Beyond, a peer scene's vertex of
+/// 1.6e198 (found by fuzzing) made infinite normals and broke the hull's neighbour links.
+pub use crate::geometry::obj::MAX_COORD as MAX_HULL_COORD;
 
 /// A convex hull: a closed polygon mesh (faces counter-clockwise seen from outside), the input
 /// index of each hull vertex, and each face's unit outward normal and offset (`n . x = d`).
@@ -725,11 +725,7 @@ mod tests {
     /// side 1e49 still has its hull.
     #[test]
     fn coordinates_beyond_the_hulls_arithmetic_are_refused() {
-        let cube = |h: f64| -> Vec<Vec3> {
-            (0..8)
-                .map(|k: u32| Vec3::new((k & 1) as f64, ((k >> 1) & 1) as f64, (k >> 2) as f64) * h)
-                .collect()
-        };
+        let cube = |h: f64| crate::geometry::mesh::cube(0.5 * h).vertices;
         let mut pts = cube(0.01);
         pts.push(Vec3::new(0.0, -1.6e198, 0.0));
         assert!(matches!(convex_hull(&pts), Err(HullError::TooLarge(8, _))));
