@@ -35,13 +35,12 @@ $(PAPER)/%.triax.jsonl: $(PAPER)/%.spec.jsonl
 
 paper-runs: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)
 
-# The seeds' mean is taken at the strains all runs measure: the --every grid (not the finer
-# measurements of the first --every, which runs made before they were the default lack).
+# The seeds' mean is taken at the strains all runs measure: the 0.1 % grid
+# (pipelines/on-grid.sh).
 group_name = $(subst ip,I_P,$(subst ab,Ab_,$(1)))
-on_grid = awk -F, '{ k = $$4 * 1000; if (k - int(k + 0.5) < 1e-6 && int(k + 0.5) - k < 1e-6) print }'
 $(PAPER)/all.csv: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)
 	( head -n 1 $(PAPER)/$(firstword $(PAPER_RUNS)).triax.csv | sed 's/^/group,seed,/' ; \
-	  $(foreach r,$(PAPER_RUNS),tail -n +2 $(PAPER)/$(r).triax.csv | $(on_grid) | \
+	  $(foreach r,$(PAPER_RUNS),pipelines/on-grid.sh $(PAPER)/$(r).triax.csv | tail -n +2 | \
 	    sed 's/^/$(call group_name,$(word 1,$(subst -, ,$(r)))),$(word 2,$(subst -, ,$(r))),/' ;) ) > $@
 
 $(PAPER)/summary.csv: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)

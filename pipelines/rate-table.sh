@@ -23,8 +23,6 @@ for run in "$@" "$slow"; do
       -v run="$run" -v wall="$wall" '
     function abs(x) { return x < 0 ? -x : x }
     FNR == 1 { next }
-    # Only the measurements on the 0.1 % grid (not the opening'"'"'s finer ones before it).
-    abs($n * 1000 - int($n * 1000 + 0.5)) > 1e-6 { next }
     NR == FNR { k = int($n * 1000 + 0.5); rq[k] = $q; rv[k] = $v;
                 if ($q > peak) peak = $q; if (abs($v) > vmax) vmax = abs($v); next }
     { k = int($n * 1000 + 0.5); tq[k] = $q; tv[k] = $v; if ($i > imax) imax = $i;
@@ -45,5 +43,5 @@ for run in "$@" "$slow"; do
         run, wall, imax, 100 * mq / peak, 100 * mv / vmax, 100 * aq / peak, 100 * av / vmax,
         100 * eq / peak, 100 * ev / vmax
     }
-  ' "$ref" "$csv"
+  ' <(pipelines/on-grid.sh "$ref") <(pipelines/on-grid.sh "$csv")
 done
