@@ -18,8 +18,9 @@ Without --stats every row is a point and rows of one series are joined in file o
 first and the second column's later values are dashed.
 
 Errors: a missing column, a row of another width or a value that is not a number stops with
-the row named and exit 1, no picture written. nan and inf are numbers, left out of the picture;
-values spread wider than a float spans (1e308 and -1e308 on one axis) are refused.";
+the row named and exit 1, no picture written. nan and inf are numbers, left out of the picture
+and of --stats; values spread wider than a float spans (1e308 and -1e308 on one axis) are
+refused. Limits and errors: docs/formats/plot-csv.md.";
 
 /// Draws a line chart from a CSV table with a header (standard input) as PNG (standard output).
 #[derive(Parser, Debug)]

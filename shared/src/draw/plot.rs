@@ -321,10 +321,14 @@ impl Stats {
 }
 
 /// Groups `(series key, x, y)` rows and returns, per series key (sorted) and x (sorted), the
-/// statistics of y.
+/// statistics of y. Rows with x or y not finite are left out, as they are of the picture (a
+/// seed whose value is undefined drops out of its group's mean; `n` counts those kept).
 pub fn group_stats(rows: &[(String, f64, f64)]) -> BTreeMap<String, Vec<(f64, Stats)>> {
     let mut groups: BTreeMap<String, BTreeMap<u64, (f64, Vec<f64>)>> = BTreeMap::new();
     for (key, x, y) in rows {
+        if !(x.is_finite() && y.is_finite()) {
+            continue;
+        }
         // Order x by its value: map f64 to a monotone integer key.
         let bits = x.to_bits();
         let ord = if bits >> 63 == 1 {
@@ -356,6 +360,29 @@ pub fn group_stats(rows: &[(String, f64, f64)]) -> BTreeMap<String, Vec<(f64, St
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn values_that_are_not_finite_stay_out_of_the_statistics() {
+        let row = |x: f64, y: f64| ("g".to_string(), x, y);
+        let rows = [
+            row(1.0, f64::NAN),
+            row(1.0, 4.0),
+            row(1.0, 2.0),
+            row(1.0, f64::INFINITY),
+            row(2.0, f64::NAN),
+            row(f64::NAN, 5.0),
+        ];
+        let g = &group_stats(&rows)["g"];
+        assert_eq!(
+            g.len(),
+            1,
+            "x = 2 holds no finite value, x = NaN is no place: {g:?}"
+        );
+        let (x, s) = g[0];
+        assert_eq!(x, 1.0);
+        assert_eq!((s.n, s.mean, s.min, s.max), (2, 3.0, 2.0, 4.0));
+        assert!(s.std.is_finite() && s.p05.is_finite() && s.p95.is_finite());
+    }
 
     #[test]
     fn a_tick_of_round_off_reads_zero_and_a_small_axis_keeps_its_ticks() {
