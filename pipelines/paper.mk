@@ -28,10 +28,12 @@ $(PAPER)/%.spec.jsonl: $(OUT)/group-$$(word 1,$$(subst -, ,$$*)).obj
 # mean over its seeds and a band from the smallest to the largest (out/paper/fig*.png).
 .SECONDARY: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)
 
+# A test stopped part way (a job's time limit) goes on from its last whole frame when its
+# target is made again (pipelines/triax-resume.sh).
 $(PAPER)/%.triax.jsonl: $(PAPER)/%.spec.jsonl
-	triax $(PAPER_TRIAX) --quiet --summary $(PAPER)/$*.triax.json --csv $(PAPER)/$*.triax.csv \
-	  --obj $(PAPER)/$*.triax.obj --obj-group $* < $< > $@.part 2> $(PAPER)/$*.triax.log
-	mv $@.part $@
+	pipelines/triax-resume.sh $< $@ $(PAPER_TRIAX) --quiet --summary $(PAPER)/$*.triax.json \
+	  --csv $(PAPER)/$*.triax.csv --obj $(PAPER)/$*.triax.obj --obj-group $* \
+	  2>> $(PAPER)/$*.triax.log
 
 paper-runs: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).triax.jsonl)
 

@@ -50,7 +50,7 @@ fn specimen() -> World {
 fn a_hydrostatic_hold_stays_at_the_pressure_on_every_boundary() {
     let params = Params::default();
     let mut t = Triax::new(specimen(), params.clone()).unwrap();
-    t.consolidate(1_000_000, &mut |_: Event| {}).unwrap();
+    t.consolidate(1_000_000, 0, &mut |_: Event| {}).unwrap();
     let before = t.measure();
     t.hold(20_000);
     let after = t.measure();
@@ -83,7 +83,7 @@ fn a_sharp_specimen_stays_inside_the_membrane_deep_into_loading() {
         ..Params::default()
     };
     let mut t = Triax::new(specimen(), params).unwrap();
-    t.consolidate(1_000_000, &mut |_: Event| {}).unwrap();
+    t.consolidate(1_000_000, 0, &mut |_: Event| {}).unwrap();
     let mut last = None;
     t.load(None, &mut |e: Event| {
         if let Event::Measure(m) = e {

@@ -94,8 +94,13 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
         assert!(p > 5e4 && p < 3e5, "contact p {p}");
         assert!(m["coordination"].as_f64().unwrap() > 0.0);
     }
-    let frames: Vec<&serde_json::Value> = recs.iter().filter(|r| r["type"] == "frame").collect();
+    let phase =
+        |r: &serde_json::Value, p: &str| r["type"] == "frame" && r["progress"]["phase"] == p;
+    let frames: Vec<&serde_json::Value> = recs.iter().filter(|r| phase(r, "loading")).collect();
     assert_eq!(frames.len(), 3, "frames at 0, 1 and 2 %");
+    let checkpoints: Vec<&serde_json::Value> = (recs.iter())
+        .filter(|r| phase(r, "consolidation"))
+        .collect();
     assert_eq!(
         recs.last().unwrap()["type"],
         "energy",
@@ -131,6 +136,21 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
         "{s}"
     );
     assert_eq!(s["steps"].as_u64(), Some(step(frames[2]) - start), "{s}");
+    // Checkpoints in consolidation every 20 000 of its steps, before it ended.
+    let consolidation = first - start;
+    assert!(
+        consolidation > 20_000,
+        "too short to checkpoint: {consolidation} steps"
+    );
+    let at: Vec<u64> = checkpoints.iter().map(|r| step(r) - start).collect();
+    let due: Vec<u64> = (1..)
+        .map(|k| k * 20_000)
+        .take_while(|&k| k < consolidation)
+        .collect();
+    assert_eq!(
+        at, due,
+        "checkpoints in {consolidation} steps of consolidation"
+    );
     let table = std::fs::read_to_string(&csv).unwrap();
     assert_eq!(table.lines().count(), 17);
     // The table's nominal strains are the ones each measurement was due at.
@@ -195,8 +215,9 @@ fn a_smooth_start_sends_no_stress_wave_through_the_specimen() {
     );
 }
 
-/// A run stopped at a frame and resumed from its stream writes, together, the bytes of the
-/// run in one go; 1 and 2 threads write the same bytes.
+/// A run stopped at a frame, in loading or at a checkpoint in consolidation, and resumed from
+/// its stream writes, together, the bytes of the run in one go; 1 and 2 threads write the
+/// same bytes.
 #[test]
 fn a_resumed_test_and_any_thread_count_give_the_same_bytes() {
     let whole = short_stream().to_vec();
@@ -210,6 +231,24 @@ fn a_resumed_test_and_any_thread_count_give_the_same_bytes() {
     assert!(
         joined == whole,
         "stopped and resumed differs from the run in one go"
+    );
+    // Stopped in consolidation: the stream cut after its first checkpoint's state resumes
+    // from there, to the same bytes.
+    let text = String::from_utf8_lossy(&whole).to_string();
+    let lines: Vec<&str> = text.lines().collect();
+    let (at, count) = (lines.iter().enumerate())
+        .find_map(|(i, l)| {
+            let r: serde_json::Value = serde_json::from_str(l).ok()?;
+            let checkpoint = r["type"] == "frame" && r["progress"]["phase"] == "consolidation";
+            checkpoint.then(|| (i, r["records"].as_u64().unwrap() as usize))
+        })
+        .expect("a checkpoint in consolidation");
+    let mut cut = (lines[..=at + count].join("\n") + "\n").into_bytes();
+    let rest = ok("triax", &[], &cut);
+    cut.extend(&rest);
+    assert!(
+        cut == whole,
+        "resumed in consolidation differs from the run in one go"
     );
     // Resuming a finished stream does nothing.
     assert!(ok("triax", &[], &whole).is_empty());

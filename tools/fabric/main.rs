@@ -26,8 +26,9 @@ Examples:
   pack --seed 1 < group.obj | fabric --volume 5.3e-3 > spec-fabric.csv
 
 Standard input: any stream of dem states (docs/formats/dem-state.md): a triax stream (its
-frames; the measurement at each frame gives the axial strain, the specimen's volume and the
-boundary's stress ratio), a pack specimen or a dem run. Standard output: one row per state, CSV
+frames of loading, not its checkpoints in consolidation; the measurement at each frame gives the
+axial strain, the specimen's volume and the boundary's stress ratio), a pack specimen or a dem
+run. Standard output: one row per state, CSV
 with a header (or JSON lines with --json); docs/formats/fabric.md lists the columns. The
 fabric follows the paper's Eqs. 10-20 with the conventions of docs/models/fabric.md. Every state
 must hold the same bodies as the first (rotations are measured from the first).";
@@ -284,8 +285,9 @@ fn rows(args: &Cli, table: &mut Table) -> anyhow::Result<Vec<Kept>> {
     let mut first: Option<(Vec<(u32, f64)>, usize)> = None;
     let mut rotations: Option<Rotations> = None;
     let mut measure: Option<Measure> = None;
-    // A triax frame record: the state after it must have this many records.
-    let mut frame: Option<(usize, usize)> = None;
+    // A triax frame record: the state after it must have this many records; a frame in
+    // consolidation (a checkpoint to resume from) makes no row.
+    let mut frame: Option<(usize, usize, bool)> = None;
     let (mut start, mut peak, mut end): (Option<Kept>, Option<(f64, Kept)>, Option<Kept>) =
         (None, None, None);
     let mut count = 0usize;
@@ -303,16 +305,22 @@ fn rows(args: &Cli, table: &mut Table) -> anyhow::Result<Vec<Kept>> {
                         .get("records")
                         .and_then(|r| r.as_u64())
                         .with_context(|| format!("line {n}: a frame record without 'records'"))?;
-                    frame = Some((records as usize, n));
+                    let consolidation = v
+                        .pointer("/progress/phase")
+                        .is_some_and(|p| p == "consolidation");
+                    frame = Some((records as usize, n, consolidation));
                 }
                 _ => {}
             },
             Item::State(world, line, records) => {
-                if let Some((expected, n)) = frame.take() {
+                if let Some((expected, n, consolidation)) = frame.take() {
                     if records != expected {
                         bail!(
                             "line {line}: the state of the frame at line {n} has {records} records, not {expected} (truncated?)"
                         );
+                    }
+                    if consolidation {
+                        continue;
                     }
                 }
                 let ids = identity(&world);
@@ -385,7 +393,7 @@ fn rows(args: &Cli, table: &mut Table) -> anyhow::Result<Vec<Kept>> {
     if !args.quiet {
         progress.finish();
     }
-    if let Some((_, n)) = frame {
+    if let Some((_, n, _)) = frame {
         bail!("line {n}: the stream ends in a frame record without its state (truncated?)");
     }
     if count == 0 {

@@ -103,6 +103,10 @@ struct Cli {
     /// The most steps consolidation may take
     #[arg(long, default_value_t = 2_000_000)]
     max_steps: u64,
+    /// During consolidation, a frame every this many steps (0: none), from which a run
+    /// stopped in consolidation resumes (cut the stream after that frame's state)
+    #[arg(long, default_value_t = 20_000)]
+    checkpoint_every: u64,
     /// End the run at the first frame at or past this axial strain (resume it later from
     /// the stream)
     #[arg(long, allow_negative_numbers = true)]
@@ -170,6 +174,48 @@ struct FrameRecord {
     /// The number of records of the state that follows: a frame cut short is found.
     records: usize,
     progress: Progress,
+}
+
+/// Writes a frame: its record (at axial strain `strain`) and the state.
+fn write_frame(
+    out: &mut impl Write,
+    w: &World,
+    progress: &Progress,
+    strain: f64,
+) -> anyhow::Result<()> {
+    let f = FrameRecord {
+        kind: "frame".into(),
+        axial_strain: strain,
+        step: w.step,
+        records: state::record_count(w),
+        progress: progress.clone(),
+    };
+    writeln!(out, "{}", serde_json::to_string(&f)?)?;
+    state::write_world(w, out)?;
+    Ok(())
+}
+
+/// Consolidates `test` (new, or resumed from a frame in consolidation), writing a frame to
+/// `out` every `checkpoint` steps and the progress to `say`.
+fn consolidate(
+    test: &mut Triax,
+    checkpoint: u64,
+    out: &mut (impl Write + Send),
+    say: &(impl Fn(String) + Sync),
+) -> anyhow::Result<()> {
+    let mut failure: Option<anyhow::Error> = None;
+    let mut report = |e: Event| match e {
+        Event::Consolidating(step, s, u) => say(format!(
+            "consolidation step {step}: platens {:.4e} {:.4e} Pa, unbalanced {u:.3e}",
+            s[0], s[1]
+        )),
+        Event::Checkpoint(w, progress) if failure.is_none() => {
+            failure = write_frame(out, w, progress, 0.0).err();
+        }
+        _ => {}
+    };
+    test.consolidate(2_000, checkpoint, &mut report)?;
+    failure.map_or(Ok(()), Err)
 }
 
 const FORMAT: &str = "granular-triax";
@@ -297,7 +343,8 @@ fn read_stream(input: impl BufRead) -> anyhow::Result<Input> {
                         f.records
                     );
                 }
-                if start.is_none() {
+                // Rotations count from the start of loading, not from a frame in consolidation.
+                if start.is_none() && f.progress.phase == "loading" {
                     start = Some(w.bodies.iter().map(|b| b.rot).collect());
                 }
                 series.append(&mut pending);
@@ -438,15 +485,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 test.world.dt,
                 test.params.pressure
             ));
-            let mut report = |e: Event| {
-                if let Event::Consolidating(step, s, u) = e {
-                    say(format!(
-                        "consolidation step {step}: platens {:.4e} {:.4e} Pa, unbalanced {u:.3e}",
-                        s[0], s[1]
-                    ));
-                }
-            };
-            test.consolidate(2_000, &mut report)?;
+            consolidate(&mut test, args.checkpoint_every, &mut out, &say)?;
             say(format!(
                 "consolidated in {} steps ({:.1} s); loading at {} /s to axial strain {}",
                 test.progress.consolidation_steps.unwrap_or_default(),
@@ -463,9 +502,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
             series,
             start,
         } => {
-            if progress.phase != "loading" {
+            if !["consolidation", "loading"].contains(&progress.phase.as_str()) {
                 bail!(
-                    "the last frame is not in loading (phase '{}')",
+                    "the last frame's phase is '{}', not consolidation or loading",
                     progress.phase
                 );
             }
@@ -479,11 +518,25 @@ fn run(args: Cli) -> anyhow::Result<()> {
                     test.world.dt
                 ));
             }
-            say(format!(
-                "resuming at step {} (axial strain {:.4}) with the stream's settings",
-                test.world.step,
-                (test.progress.height0 / test.measure().height).ln()
-            ));
+            if test.progress.phase == "consolidation" {
+                say(format!(
+                    "resuming consolidation at its step {} with the stream's settings",
+                    test.world.step - test.progress.start_step
+                ));
+                consolidate(&mut test, args.checkpoint_every, &mut out, &say)?;
+                say(format!(
+                    "consolidated in {} steps; loading at {} /s to axial strain {}",
+                    test.progress.consolidation_steps.unwrap_or_default(),
+                    test.params.rate,
+                    test.params.final_strain
+                ));
+            } else {
+                say(format!(
+                    "resuming at step {} (axial strain {:.4}) with the stream's settings",
+                    test.world.step,
+                    (test.progress.height0 / test.measure().height).ln()
+                ));
+            }
             (test, series, start)
         }
     };
@@ -520,15 +573,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 }
                 Event::Frame(w, progress) => {
                     let strain = series.last().map_or(0.0, |m| m.axial_strain);
-                    let f = FrameRecord {
-                        kind: "frame".into(),
-                        axial_strain: strain,
-                        step: w.step,
-                        records: state::record_count(w),
-                        progress: progress.clone(),
-                    };
-                    writeln!(out, "{}", serde_json::to_string(&f)?)?;
-                    state::write_world(w, &mut out)?;
+                    write_frame(&mut out, w, progress, strain)?;
                     if start.is_none() {
                         start = Some(w.bodies.iter().map(|b| b.rot).collect());
                     }
@@ -536,7 +581,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                         s.write(w).context("writing a VTK snapshot")?;
                     }
                 }
-                Event::Consolidating(..) => {}
+                Event::Consolidating(..) | Event::Checkpoint(..) => {}
             }
             Ok(())
         })();

@@ -313,7 +313,7 @@ pub struct Progress {
     /// `every`, `frame_every`).
     pub measures: u64,
     pub frames: u64,
-    /// The step at which loading started.
+    /// The step at which the phase started (consolidation's, then loading's).
     pub start_step: u64,
     /// The steps consolidation took (absent in streams written before it was recorded).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -384,6 +384,9 @@ pub struct Triax {
 pub enum Event<'a> {
     /// Consolidation's progress, every `every_steps`: step, platen stresses, unbalanced ratio.
     Consolidating(u64, [f64; 2], f64),
+    /// A frame in consolidation, every `checkpoint` steps: the world and the progress to
+    /// resume consolidation from.
+    Checkpoint(&'a World, &'a Progress),
     Measure(&'a Measure),
     /// A frame: the world and the progress to resume from.
     Frame(&'a World, &'a Progress),
@@ -499,7 +502,7 @@ impl Triax {
                 volume0: 0.0,
                 measures: 0,
                 frames: 0,
-                start_step: 0,
+                start_step: world.step,
                 consolidation_steps: None,
             },
             world,
@@ -756,14 +759,25 @@ impl Triax {
 
     /// Step 2: the platens servo to the pressure while the membrane holds it, until both are
     /// within the tolerance and the specimen is in equilibrium; the platens then stop.
-    /// `report` sees the progress every `every_steps`.
+    /// `report` sees the progress every `every_steps`, and a frame to resume from every
+    /// `checkpoint` steps of consolidation (0: none). A test resumed from such a frame goes
+    /// on from it: steps count from consolidation's start, and the bytes are those of the run
+    /// in one go (a frame is made only at a step that did not end consolidation, and the
+    /// resumed run's first check, with no unbalanced ratio yet, does not end it either).
     pub fn consolidate(
         &mut self,
         every_steps: u64,
+        checkpoint: u64,
         report: &mut (impl FnMut(Event) + Send),
     ) -> Result<(), TriaxError> {
+        if self.progress.phase != "consolidation" {
+            return Err(TriaxError::NotTriax(format!(
+                "consolidation asked of a test in phase '{}'",
+                self.progress.phase
+            )));
+        }
         let law = self.platen_law();
-        let start = self.world.step;
+        let (start, resumed_at) = (self.progress.start_step, self.world.step);
         let outcome = on_pool(|| loop {
             let (stresses, _) = self.platen_stresses();
             let done = stresses.iter().all(|s| {
@@ -783,6 +797,9 @@ impl Triax {
                     target: self.params.pressure,
                     unbalanced: self.world.unbalanced,
                 });
+            }
+            if checkpoint > 0 && steps % checkpoint == 0 && self.world.step > resumed_at {
+                report(Event::Checkpoint(&self.world, &self.progress));
             }
             self.servo_step(&law);
         });
