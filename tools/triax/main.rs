@@ -20,14 +20,17 @@ Examples:
   triax --pressure 2e5 --rate 0.2 --final-strain 0.2 < spec.jsonl > run.jsonl
   triax --stop-at 0.05 < spec.jsonl > part.jsonl && triax < part.jsonl > rest.jsonl
       (cat part.jsonl rest.jsonl: the same bytes as the run in one go)
+  pipelines/triax-resume.sh spec.jsonl run.jsonl        (a killed run goes on from its last
+      whole frame: a checkpoint in consolidation, every --checkpoint-every steps, or in loading)
   triax --vtk out/run-vtk --obj end.obj < spec.jsonl > run.jsonl && render < end.obj > end.png
   dem --frame last --steps 0 --obj end.obj < run.jsonl > /dev/null   (any frame is a dem state)
 
 Standard input: a specimen made by pack in a cylinder (a dem state whose walls are the bottom
 platen, the top platen and the cylinder), or a stream this tool wrote, which it resumes from
-its last frame. Standard output (JSON lines, docs/formats/triax-stream.md): the settings, then
-a measurement every --every of axial strain and a frame (a complete dem state after a frame
-record) every --frame-every, at the start of loading and at the end. Progress goes to standard
+its last frame. Standard output (JSON lines, docs/formats/triax-stream.md): the settings,
+checkpoints in consolidation, then a measurement every --every of axial strain and a frame (a
+complete dem state after a frame record) every --frame-every, at the start of loading and at
+the end. Progress goes to standard
 error unless --quiet.
 
 The test (docs/models/triax.md): the cylinder becomes a membrane (--membrane-young,
