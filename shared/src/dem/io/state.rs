@@ -1020,7 +1020,11 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
     }
     let mut mesh = PolyMesh::from_faces(s.name.clone(), vertices, &s.faces);
     if let Some(p) = s.principal {
-        // The exact principal form written by dem: taken as it is.
+        // The exact principal form written by dem: taken as it is, once it is shown to be one.
+        mesh.topology(None)
+            .map_err(|e| at(n, format!("shape '{}': {e}", s.name)))?;
+        check_principal(&mesh, &p)
+            .map_err(|e| at(n, format!("shape '{}' principal form: {e}", s.name)))?;
         let face_start = std::mem::take(&mut mesh.face_start);
         let face_verts = std::mem::take(&mut mesh.face_verts);
         let (vertex_face_start, vertex_faces) =
@@ -1075,6 +1079,77 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
         ));
     }
     Ok(shape)
+}
+
+/// A shape's principal form (its vertices in the principal frame, its faces' planes, mass
+/// properties) as dem writes it: planes and properties finite, one unit normal per face, the
+/// hull convex (every vertex within every face's plane) with each face on its plane, the
+/// volume the mesh's own, the radius its farthest vertex, the moments positive and within
+/// [`MIN_MOMENT_RATIO`](crate::dem::shape::MIN_MOMENT_RATIO) of each other, the frame a unit
+/// quaternion. Read as it is, a form that breaks these would send the engine's climbs and
+/// clippings out of the shape's arrays.
+fn check_principal(mesh: &PolyMesh, p: &Principal) -> Result<(), String> {
+    let faces = mesh.face_count();
+    if p.normals.len() != faces || p.offsets.len() != faces {
+        return Err(format!(
+            "{} normals and {} offsets for {faces} faces",
+            p.normals.len(),
+            p.offsets.len()
+        ));
+    }
+    let finite = |x: &[f64]| x.iter().all(|v| v.is_finite());
+    if !(p.normals.iter().all(|n| finite(n))
+        && finite(&p.offsets)
+        && finite(&p.moments)
+        && finite(&p.centroid_in_mesh)
+        && finite(&p.frame_in_mesh)
+        && finite(&[p.volume, p.radius]))
+    {
+        return Err("a number that is not finite".into());
+    }
+    let far = mesh.vertices.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    if !(far > 0.0 && (p.radius - far).abs() <= 1e-9 * far) {
+        return Err(format!(
+            "radius {:e}, but the farthest vertex is at {far:e}",
+            p.radius
+        ));
+    }
+    // A hull's faces merge facets within 1e-10 of its box diagonal (at most 3.5e-10 of `far`)
+    // of one plane; then round-off.
+    let tol = 1e-8 * far;
+    for (f, (n, d)) in p.normals.iter().zip(&p.offsets).enumerate() {
+        let n = v3(n);
+        if !((n.norm() - 1.0).abs() <= 1e-9) {
+            return Err(format!("face {f}'s normal is not a unit vector"));
+        }
+        if (mesh.face(f).iter()).any(|&v| (n.dot(&mesh.vertices[v as usize]) - d).abs() > tol) {
+            return Err(format!("face {f} does not lie on its plane"));
+        }
+        if mesh.vertices.iter().any(|v| n.dot(v) - d > tol) {
+            return Err(format!(
+                "a vertex lies outside face {f}'s plane: not convex"
+            ));
+        }
+    }
+    let volume = crate::geometry::mass::MassProps::of(mesh).volume;
+    if !(p.volume > 0.0 && (p.volume - volume).abs() <= 1e-9 * volume) {
+        return Err(format!(
+            "volume {:e}, but the faces enclose {volume:e}",
+            p.volume
+        ));
+    }
+    let [a, b, c] = p.moments;
+    let ratio = crate::dem::shape::MIN_MOMENT_RATIO;
+    if !(a > 0.0 && a <= b && b <= c && a >= ratio * c) {
+        return Err(format!(
+            "moments {a:e}, {b:e}, {c:e}: not ascending, positive and within {ratio:e} of each other"
+        ));
+    }
+    let q = p.frame_in_mesh;
+    if !(((q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt() - 1.0).abs() <= 1e-9) {
+        return Err("the frame is not a unit quaternion".into());
+    }
+    Ok(())
 }
 
 /// Fixed bodies may not overlap one another (nothing would ever separate them).
@@ -1391,6 +1466,78 @@ mod tests {
             "{}",
             error_of(&fixed)
         );
+    }
+
+    /// A principal form that is not one (as a fuzzer made: a face naming vertex 71 of 16) is
+    /// refused on reading, with what is wrong, instead of being taken as it is.
+    #[test]
+    fn a_principal_form_that_is_not_one_is_refused() {
+        let mut out = Vec::new();
+        write_world(&read_world(scene().as_bytes()).unwrap(), &mut out).unwrap();
+        let text = String::from_utf8(out).unwrap();
+        assert!(read_world(text.as_bytes()).is_ok());
+        let broken = |change: &dyn Fn(&mut serde_json::Value)| {
+            let lines = text.lines().map(|l| {
+                let mut r: serde_json::Value = serde_json::from_str(l).unwrap();
+                if r["type"] == "shape" {
+                    change(&mut r);
+                }
+                r.to_string()
+            });
+            error_of(&lines.collect::<Vec<_>>().join("\n"))
+        };
+        let cases: [(&dyn Fn(&mut serde_json::Value), &str); 8] = [
+            (&|r| r["faces"][0][0] = 71.into(), "which does not exist"),
+            (
+                &|r| {
+                    r["principal"]["normals"].as_array_mut().unwrap().pop();
+                },
+                "5 normals and 6 offsets for 6 faces",
+            ),
+            (
+                &|r| {
+                    let x = r["principal"]["normals"][0][0].as_f64().unwrap();
+                    r["principal"]["normals"][0][0] = (x * 1.1 + 0.1).into();
+                },
+                "face 0's normal is not a unit vector",
+            ),
+            (
+                &|r| {
+                    let d = r["principal"]["offsets"][0].as_f64().unwrap();
+                    r["principal"]["offsets"][0] = (d + 0.01).into();
+                },
+                "face 0 does not lie on its plane",
+            ),
+            (
+                &|r| {
+                    let x = r["principal"]["radius"].as_f64().unwrap();
+                    r["principal"]["radius"] = (2.0 * x).into();
+                },
+                "but the farthest vertex is at",
+            ),
+            (
+                &|r| {
+                    let x = r["principal"]["volume"].as_f64().unwrap();
+                    r["principal"]["volume"] = (2.0 * x).into();
+                },
+                "but the faces enclose",
+            ),
+            (
+                &|r| r["principal"]["moments"] = serde_json::json!([3.0, 2.0, 1.0]),
+                "not ascending, positive",
+            ),
+            (
+                &|r| r["principal"]["frame_in_mesh"] = serde_json::json!([2.0, 0.0, 0.0, 0.0]),
+                "the frame is not a unit quaternion",
+            ),
+        ];
+        for (change, says) in cases {
+            let e = broken(change);
+            assert!(
+                e.contains("shape 'cube'") && e.contains(says),
+                "{says}: {e}"
+            );
+        }
     }
 
     #[test]
