@@ -212,8 +212,11 @@ fn consolidate(
             "consolidation step {step}: platens {:.4e} {:.4e} Pa, unbalanced {u:.3e}",
             s[0], s[1]
         )),
+        // Flushed: a checkpoint is only of use once it is whole on disk.
         Event::Checkpoint(w, progress) if failure.is_none() => {
-            failure = write_frame(out, w, progress, 0.0).err();
+            failure = write_frame(out, w, progress, 0.0)
+                .and_then(|()| Ok(out.flush()?))
+                .err();
         }
         _ => {}
     };
@@ -577,6 +580,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 Event::Frame(w, progress) => {
                     let strain = series.last().map_or(0.0, |m| m.axial_strain);
                     write_frame(&mut out, w, progress, strain)?;
+                    out.flush()?;
                     if start.is_none() {
                         start = Some(w.bodies.iter().map(|b| b.rot).collect());
                     }
