@@ -179,7 +179,8 @@ struct FrameRecord {
     progress: Progress,
 }
 
-/// Writes a frame: its record (at axial strain `strain`) and the state.
+/// Writes a frame: its record (at axial strain `strain`) and the state, flushed (a frame is of
+/// use to resume from only once it is whole on disk).
 fn write_frame(
     out: &mut impl Write,
     w: &World,
@@ -194,7 +195,8 @@ fn write_frame(
         progress: progress.clone(),
     };
     writeln!(out, "{}", serde_json::to_string(&f)?)?;
-    state::write_world(w, out)?;
+    state::write_world(w, &mut *out)?;
+    out.flush()?;
     Ok(())
 }
 
@@ -212,11 +214,8 @@ fn consolidate(
             "consolidation step {step}: platens {:.4e} {:.4e} Pa, unbalanced {u:.3e}",
             s[0], s[1]
         )),
-        // Flushed: a checkpoint is only of use once it is whole on disk.
         Event::Checkpoint(w, progress) if failure.is_none() => {
-            failure = write_frame(out, w, progress, 0.0)
-                .and_then(|()| Ok(out.flush()?))
-                .err();
+            failure = write_frame(out, w, progress, 0.0).err();
         }
         _ => {}
     };
@@ -580,7 +579,6 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 Event::Frame(w, progress) => {
                     let strain = series.last().map_or(0.0, |m| m.axial_strain);
                     write_frame(&mut out, w, progress, strain)?;
-                    out.flush()?;
                     if start.is_none() {
                         start = Some(w.bodies.iter().map(|b| b.rot).collect());
                     }
