@@ -291,6 +291,41 @@ fn dem_time_step_out_of_range_is_an_input_error_not_a_panic() {
     );
 }
 
+/// Bodies started deep inside each other, too few to blow the run up, are flung apart by the
+/// penalty law: the run goes on, with a warning naming the pair and the depth; a scene whose
+/// bodies start apart gets no such warning.
+#[test]
+fn dem_warns_of_bodies_started_inside_each_other() {
+    let drop = String::from_utf8(super::repo_file("examples/drop.jsonl")).unwrap();
+    let mut spot = String::new();
+    for line in drop.lines() {
+        let line = match line.find("\"pos\":[") {
+            Some(at) if line.contains("\"type\":\"body\"") => {
+                let end = at + line[at..].find(']').unwrap();
+                format!("{}\"pos\":[0,0,0.1{}", &line[..at], &line[end..])
+            }
+            _ => line.to_string(),
+        };
+        spot.push_str(&line);
+        spot.push('\n');
+    }
+    assert_eq!(
+        spot.matches("\"pos\":[0,0,0.1]").count(),
+        6,
+        "six bodies in one spot"
+    );
+    let out = super::run("dem", &["--steps", "10"], spot.as_bytes());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("warning: bodies 0 and 1 overlap by") && err.contains("flung apart"),
+        "{err}"
+    );
+    let out = super::run("dem", &["--steps", "10"], drop.as_bytes());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && !err.contains("overlap"), "{err}");
+}
+
 /// The OBJ reader's messages: a byte-order mark is accepted; a vertex with extra values, a
 /// repeated vertex, text that is not UTF-8, a NUL byte and a token of a million characters
 /// each get a short message naming the line.

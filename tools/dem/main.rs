@@ -221,6 +221,26 @@ fn read_frame(which: &str) -> anyhow::Result<World> {
     }
 }
 
+/// A contact deeper than this share of its smaller body's bounding radius, after the first
+/// step, is warned of: far outside the linear contact law's range.
+const DEEP_OVERLAP: f64 = 0.2;
+
+fn warn_of_deep_overlap(world: &World) {
+    if let Some(((partner, b), share)) = world.deepest_overlap() {
+        if share > DEEP_OVERLAP {
+            let with = match partner {
+                Partner::Body(a) => format!("bodies {a} and {b} overlap"),
+                Partner::Wall(w) => format!("body {b} overlaps wall {w}"),
+            };
+            eprintln!(
+                "dem: warning: {with} by {share:.3} of the smaller's bounding radius after the first step \
+                 (more than {DEEP_OVERLAP}): bodies placed inside each other are flung apart; place them apart, \
+                 as pack does"
+            );
+        }
+    }
+}
+
 fn run(args: Cli) -> anyhow::Result<()> {
     cli::check_output(args.obj.as_deref(), "--obj")?;
     cli::check_output(args.series.as_deref(), "--series")?;
@@ -374,6 +394,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
                     world.step,
                     world.time
                 );
+            }
+            if k == 0 {
+                warn_of_deep_overlap(&world);
             }
             let done = args.until_unbalanced.is_some_and(|r| world.unbalanced < r);
             let last = done || k + 1 == steps;

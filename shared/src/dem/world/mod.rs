@@ -434,6 +434,32 @@ impl World {
         })
     }
 
+    /// The contact whose overlap is the largest share of its smaller body's bounding radius
+    /// (a wall contact: of its body's): `(key, depth / radius)`, or `None` without contacts. A
+    /// penalty contact of more than a small share of a radius is far outside the linear law's
+    /// range: bodies started inside each other are flung apart by it.
+    pub fn deepest_overlap(&self) -> Option<(ContactKey, f64)> {
+        let radius = |b: u32| {
+            let body = &self.bodies[b as usize];
+            self.shapes[body.shape as usize].radius * body.scale
+        };
+        (self.contacts.iter())
+            .map(|(&(partner, b), c)| {
+                let r = match partner {
+                    Partner::Body(a) => radius(a).min(radius(b)),
+                    Partner::Wall(_) => radius(b),
+                };
+                ((partner, b), c.depth / r)
+            })
+            .fold(
+                None,
+                |best: Option<(ContactKey, f64)>, (k, share)| match best {
+                    Some((_, s)) if s >= share => best,
+                    _ => Some((k, share)),
+                },
+            )
+    }
+
     /// The time step `safety x` [`World::critical_dt`], or why there is none: a critical step
     /// that is zero, not a number or below the smallest normal float (stiffness or inertia
     /// out of range: `kn = 1e308` overflows the rotation rate), or infinite (no free body or
