@@ -48,39 +48,36 @@ pub struct PolyMesh {
 }
 
 /// Why a mesh is not a closed, consistently oriented 2-manifold. `line` is the OBJ line of the
-/// face concerned where the caller supplied face lines. `face` and `BadIndex::vertex` are 0-based;
-/// `a`, `b` and the vertex of `UnusedVertex`/`NonManifoldVertex` are 1-based; messages number
-/// everything from 1 within the object, as OBJ does.
+/// face concerned where the caller supplied face lines. `face`, `other` and `BadIndex::vertex`
+/// and `RepeatedVertex::vertex` are 0-based; `a`, `b` and the vertex of
+/// `UnusedVertex`/`NonManifoldVertex` are 1-based. Its `Display` numbers everything from 1
+/// within the object, as OBJ does; [`MeshError::counted_from`] numbers from another base (0 for
+/// the JSON state, whose face lists count from 0).
 #[derive(Debug, Error, PartialEq)]
+#[error("{}", self.counted_from(1))]
 pub enum MeshError {
-    #[error("the mesh has no faces")]
     Empty,
-    #[error("face {}{} has {count} distinct vertices; a face needs at least 3", face + 1, at(*line))]
     DegenerateFace {
         face: usize,
         line: Option<u64>,
         count: usize,
     },
-    #[error("face {}{} repeats vertex {}; a face goes round distinct vertices", face + 1, at(*line), vertex + 1)]
     RepeatedVertex {
         face: usize,
         line: Option<u64>,
         vertex: u32,
     },
-    #[error("face {}{} uses vertex {} which does not exist", face + 1, at(*line), vertex + 1)]
     BadIndex {
         face: usize,
         line: Option<u64>,
         vertex: u32,
     },
-    #[error("edge {a}-{b} of face {}{} has no neighbour: the mesh is open (boundary edge)", face + 1, at(*line))]
     BoundaryEdge {
         face: usize,
         line: Option<u64>,
         a: u32,
         b: u32,
     },
-    #[error("edge {a}-{b} is shared by {count} faces (first: face {}{}); a manifold edge has exactly 2", face + 1, at(*line))]
     NonManifoldEdge {
         face: usize,
         line: Option<u64>,
@@ -88,7 +85,6 @@ pub enum MeshError {
         b: u32,
         count: usize,
     },
-    #[error("face {}{} runs edge {a}-{b} in the same direction as face {}{}: one of them is flipped (inconsistent orientation)", face + 1, at(*line), other + 1, at(*other_line))]
     FlippedFace {
         face: usize,
         line: Option<u64>,
@@ -97,10 +93,72 @@ pub enum MeshError {
         a: u32,
         b: u32,
     },
-    #[error("vertex {vertex} is not used by any face")]
-    UnusedVertex { vertex: u32 },
-    #[error("vertex {vertex} joins two or more separate fans of faces (non-manifold vertex)")]
-    NonManifoldVertex { vertex: u32 },
+    UnusedVertex {
+        vertex: u32,
+    },
+    NonManifoldVertex {
+        vertex: u32,
+    },
+}
+
+impl MeshError {
+    /// The message, faces and vertices numbered from `base` (1 as OBJ counts, 0 as the JSON
+    /// state does).
+    pub fn counted_from(&self, base: u64) -> String {
+        // From 0-based and from 1-based indices.
+        let z = |i: usize| i as u64 + base;
+        let o = |i: u32| u64::from(i) + base - 1;
+        match self {
+            MeshError::Empty => "the mesh has no faces".into(),
+            MeshError::DegenerateFace { face, line, count } => format!(
+                "face {}{} has {count} distinct vertices; a face needs at least 3",
+                z(*face),
+                at(*line)
+            ),
+            MeshError::RepeatedVertex { face, line, vertex } => format!(
+                "face {}{} repeats vertex {}; a face goes round distinct vertices",
+                z(*face),
+                at(*line),
+                z(*vertex as usize)
+            ),
+            MeshError::BadIndex { face, line, vertex } => format!(
+                "face {}{} uses vertex {} which does not exist",
+                z(*face),
+                at(*line),
+                z(*vertex as usize)
+            ),
+            MeshError::BoundaryEdge { face, line, a, b } => format!(
+                "edge {}-{} of face {}{} has no neighbour: the mesh is open (boundary edge)",
+                o(*a),
+                o(*b),
+                z(*face),
+                at(*line)
+            ),
+            MeshError::NonManifoldEdge { face, line, a, b, count } => format!(
+                "edge {}-{} is shared by {count} faces (first: face {}{}); a manifold edge has exactly 2",
+                o(*a),
+                o(*b),
+                z(*face),
+                at(*line)
+            ),
+            MeshError::FlippedFace { face, line, other, other_line, a, b } => format!(
+                "face {}{} runs edge {}-{} in the same direction as face {}{}: one of them is flipped (inconsistent orientation)",
+                z(*face),
+                at(*line),
+                o(*a),
+                o(*b),
+                z(*other),
+                at(*other_line)
+            ),
+            MeshError::UnusedVertex { vertex } => {
+                format!("vertex {} is not used by any face", o(*vertex))
+            }
+            MeshError::NonManifoldVertex { vertex } => format!(
+                "vertex {} joins two or more separate fans of faces (non-manifold vertex)",
+                o(*vertex)
+            ),
+        }
+    }
 }
 
 fn at(line: Option<u64>) -> String {
@@ -398,6 +456,28 @@ mod tests {
         let err = c.topology(Some(&lines)).unwrap_err();
         assert!(matches!(err, MeshError::FlippedFace { .. }), "{err}");
         assert!(err.to_string().contains("line 11"), "{err}");
+    }
+
+    /// Messages number faces and vertices from 1 as OBJ does, or from 0 as the JSON state
+    /// does, for the same error.
+    #[test]
+    fn messages_count_from_the_format_s_base() {
+        let mut c = cube(1.0);
+        c.face_verts[5] = 9; // face 1 (0-based) names vertex 9 of 8
+        let err = c.topology(None).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "face 2 uses vertex 10 which does not exist"
+        );
+        assert_eq!(
+            err.counted_from(0),
+            "face 1 uses vertex 9 which does not exist"
+        );
+        let mut c = cube(1.0);
+        c.vertices.push(Vec3::zeros());
+        let err = c.topology(None).unwrap_err();
+        assert_eq!(err.to_string(), "vertex 9 is not used by any face");
+        assert_eq!(err.counted_from(0), "vertex 8 is not used by any face");
     }
 
     #[test]

@@ -1022,7 +1022,7 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
     if let Some(p) = s.principal {
         // The exact principal form written by dem: taken as it is, once it is shown to be one.
         mesh.topology(None)
-            .map_err(|e| at(n, format!("shape '{}': {e}", s.name)))?;
+            .map_err(|e| at(n, format!("shape '{}': {}", s.name, e.counted_from(0))))?;
         check_principal(&mesh, &p)
             .map_err(|e| at(n, format!("shape '{}' principal form: {e}", s.name)))?;
         let face_start = std::mem::take(&mut mesh.face_start);
@@ -1061,7 +1061,7 @@ fn shape_from_record(n: usize, s: ShapeRecord) -> Result<Shape, StateError> {
         });
     }
     mesh.topology(None)
-        .map_err(|e| at(n, format!("shape '{}': {e}", s.name)))?;
+        .map_err(|e| at(n, format!("shape '{}': {}", s.name, e.counted_from(0))))?;
     let props = crate::geometry::mass::MassProps::of(&mesh);
     if props.volume <= 0.0 {
         return Err(at(n, format!("shape '{}' faces point inwards (volume {:e}); faces must be counter-clockwise seen from outside", s.name, props.volume)));
@@ -1487,7 +1487,10 @@ mod tests {
             error_of(&lines.collect::<Vec<_>>().join("\n"))
         };
         let cases: [(&dyn Fn(&mut serde_json::Value), &str); 8] = [
-            (&|r| r["faces"][0][0] = 71.into(), "which does not exist"),
+            (
+                &|r| r["faces"][0][0] = 71.into(),
+                "face 0 uses vertex 71 which does not exist",
+            ),
             (
                 &|r| {
                     r["principal"]["normals"].as_array_mut().unwrap().pop();
