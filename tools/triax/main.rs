@@ -219,8 +219,27 @@ fn consolidate(
         }
         _ => {}
     };
+    let (clock, first) = (std::time::Instant::now(), test.world.step);
     test.consolidate(2_000, checkpoint, &mut report)?;
-    failure.map_or(Ok(()), Err)
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    // A resumed consolidation ran only its last steps here.
+    let (all, ran) = (
+        test.progress.consolidation_steps.unwrap_or_default(),
+        test.world.step - first,
+    );
+    let secs = clock.elapsed().as_secs_f64();
+    let took = if ran == all {
+        format!("{secs:.1} s")
+    } else {
+        format!("the last {ran} in {secs:.1} s")
+    };
+    say(format!(
+        "consolidated in {all} steps ({took}); loading at {} /s to axial strain {}",
+        test.params.rate, test.params.final_strain
+    ));
+    Ok(())
 }
 
 const FORMAT: &str = "granular-triax";
@@ -491,13 +510,6 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 test.params.pressure
             ));
             consolidate(&mut test, args.checkpoint_every, &mut out, &say)?;
-            say(format!(
-                "consolidated in {} steps ({:.1} s); loading at {} /s to axial strain {}",
-                test.progress.consolidation_steps.unwrap_or_default(),
-                clock.elapsed().as_secs_f64(),
-                test.params.rate,
-                test.params.final_strain
-            ));
             (test, Vec::new(), None)
         }
         Input::Resume {
@@ -529,12 +541,6 @@ fn run(args: Cli) -> anyhow::Result<()> {
                     test.world.step - test.progress.start_step
                 ));
                 consolidate(&mut test, args.checkpoint_every, &mut out, &say)?;
-                say(format!(
-                    "consolidated in {} steps; loading at {} /s to axial strain {}",
-                    test.progress.consolidation_steps.unwrap_or_default(),
-                    test.params.rate,
-                    test.params.final_strain
-                ));
             } else {
                 say(format!(
                     "resuming at step {} (axial strain {:.4}) with the stream's settings",
