@@ -419,7 +419,7 @@ impl World {
                         .into(),
                 });
             }
-            let r = self.shapes[b.shape as usize].radius * b.scale;
+            let r = self.bounding_radius(b);
             if b.vel.norm_squared() * (self.dt * self.dt) <= r * r {
                 return None;
             }
@@ -439,10 +439,7 @@ impl World {
     /// penalty contact of more than a small share of a radius is far outside the linear law's
     /// range: bodies started inside each other are flung apart by it.
     pub fn deepest_overlap(&self) -> Option<(ContactKey, f64)> {
-        let radius = |b: u32| {
-            let body = &self.bodies[b as usize];
-            self.shapes[body.shape as usize].radius * body.scale
-        };
+        let radius = |b: u32| self.bounding_radius(&self.bodies[b as usize]);
         (self.contacts.iter())
             .map(|(&(partner, b), c)| {
                 let r = match partner {
@@ -451,13 +448,13 @@ impl World {
                 };
                 ((partner, b), c.depth / r)
             })
-            .fold(
-                None,
-                |best: Option<(ContactKey, f64)>, (k, share)| match best {
-                    Some((_, s)) if s >= share => best,
-                    _ => Some((k, share)),
-                },
-            )
+            // The first of equal depths.
+            .reduce(|best, next| if next.1 > best.1 { next } else { best })
+    }
+
+    /// The radius of the sphere about body `b`'s centre of mass that holds it.
+    pub fn bounding_radius(&self, b: &Body) -> f64 {
+        self.shapes[b.shape as usize].radius * b.scale
     }
 
     /// The time step `safety x` [`World::critical_dt`], or why there is none: a critical step

@@ -277,7 +277,7 @@ impl World {
         let faceted = (self.walls.iter()).any(|w| matches!(w.kind, WallKind::Facets { .. }));
         let largest = (self.bodies.iter())
             .filter(|_| faceted)
-            .map(|b| self.shapes[b.shape as usize].radius * b.scale)
+            .map(|b| self.bounding_radius(b))
             .fold(0.0, f64::max);
         let grids: Vec<Option<FacetGrid>> = (self.walls.iter())
             .map(|w| FacetGrid::of(w, largest))
