@@ -21,7 +21,7 @@ $(OUT)/fabric-all.csv: $(foreach g,$(GROUPS),$(OUT)/fabric-$(g).csv)
 
 fig13: $(OUT)/fabric-all.csv
 	plot --x axial_strain --y coordination,mechanical_coordination --series group --size 1200x500 \
-	  --xlabel "axial strain ln(H0/H)" --ylabel "coordination 2Nc/Np,without rattlers" \
+	  --xlabel "axial strain ln(H0/H)" --ylabel "coordination 2Nc/Np" --ylabel "without rattlers" \
 	  --title "Fig. 13: coordination number during loading" < $< > $(OUT)/fig13.png
 
 fig14: $(OUT)/fabric-all.csv
@@ -31,7 +31,7 @@ fig14: $(OUT)/fabric-all.csv
 
 fig15: $(OUT)/fabric-all.csv
 	plot --x axial_strain --y rotation,rotation_accumulated --series group --size 1200x500 \
-	  --xlabel "axial strain ln(H0/H)" --ylabel "mean rotation (rad),accumulated (rad)" \
+	  --xlabel "axial strain ln(H0/H)" --ylabel "mean rotation (rad)" --ylabel "accumulated (rad)" \
 	  --title "Fig. 15: mean particle rotation since the start of loading" < $< > $(OUT)/fig15.png
 
 fig16: $(foreach g,$(GROUPS),$(OUT)/fabric-$(g).csv)
@@ -41,13 +41,13 @@ fig16: $(foreach g,$(GROUPS),$(OUT)/fabric-$(g).csv)
 
 fig17: $(OUT)/fabric-all.csv
 	plot --x axial_strain --y a_c,a_bn,a_fn,a_ft --series group --size 1600x500 \
-	  --xlabel "axial strain ln(H0/H)" --ylabel "a_c (normals),a_bn (branch),a_fn (normal force),a_ft (shear force)" \
+	  --xlabel "axial strain ln(H0/H)" --ylabel "a_c (normals)" --ylabel "a_bn (branch)" --ylabel "a_fn (normal force)" --ylabel "a_ft (shear force)" \
 	  --title "Fig. 17: anisotropies during loading" < $< > $(OUT)/fig17.png
 
 fig18: $(OUT)/fabric-all.csv
 	plot --x axial_strain --y ratio_anisotropy,ratio_contacts,ratio_boundary --series group \
 	  --size 1500x500 --xlabel "axial strain ln(H0/H)" \
-	  --ylabel "q/p from anisotropy (Eq. 19),q/p from contacts (Eq. 9),q/p from boundary (Eq. 20)" \
+	  --ylabel "q/p from anisotropy (Eq. 19)" --ylabel "q/p from contacts (Eq. 9)" --ylabel "q/p from boundary (Eq. 20)" \
 	  --title "Fig. 18: stress ratios during loading" < $< > $(OUT)/fig18.png
 
 # The paper's scale: the fabric of every run of `make paper`, figures 13-18 with each group's
@@ -70,24 +70,24 @@ $(PAPER)/fabric-all.csv: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).fabric.csv)
 
 paper-fabric: $(PAPER)/fabric-all.csv
 	plot --x nominal_strain --y coordination,mechanical_coordination --series group --stats --band minmax \
-	  --size 1200x500 --xlabel "axial strain ln(H0/H)" --ylabel "coordination 2Nc/Np,without rattlers" \
+	  --size 1200x500 --xlabel "axial strain ln(H0/H)" --ylabel "coordination 2Nc/Np" --ylabel "without rattlers" \
 	  --title "Fig. 13 at the paper's scale: mean over seeds, band min-max" < $< > $(PAPER)/fig13.png
 	plot --x nominal_strain --y sliding_ratio --series group --stats --band minmax \
 	  --xlabel "axial strain ln(H0/H)" --ylabel "sliding ratio Sp (mobility > 0.9999)" \
 	  --title "Fig. 14 at the paper's scale" < $< > $(PAPER)/fig14.png
 	plot --x nominal_strain --y rotation,rotation_accumulated --series group --stats --band minmax \
-	  --size 1200x500 --xlabel "axial strain ln(H0/H)" --ylabel "mean rotation (rad),accumulated (rad)" \
+	  --size 1200x500 --xlabel "axial strain ln(H0/H)" --ylabel "mean rotation (rad)" --ylabel "accumulated (rad)" \
 	  --title "Fig. 15 at the paper's scale" < $< > $(PAPER)/fig15.png
 	cat $(foreach g,$(GROUPS),$(PAPER)/$(g)-$(firstword $(PAPER_SEEDS)).roses.obj) | render --cols 3 \
 	  --same-scale --size 1200x$(shell echo $$((375 * $(words $(GROUPS))))) --no-edges --elevation 15 \
 	  --title "Fig. 16 at the paper's scale: roses of the normal contact force" \
 	  > $(PAPER)/fig16.png
 	plot --x nominal_strain --y a_c,a_bn,a_fn,a_ft --series group --stats --band minmax --size 1600x500 \
-	  --xlabel "axial strain ln(H0/H)" --ylabel "a_c (normals),a_bn (branch),a_fn (normal force),a_ft (shear force)" \
+	  --xlabel "axial strain ln(H0/H)" --ylabel "a_c (normals)" --ylabel "a_bn (branch)" --ylabel "a_fn (normal force)" --ylabel "a_ft (shear force)" \
 	  --title "Fig. 17 at the paper's scale" < $< > $(PAPER)/fig17.png
 	plot --x nominal_strain --y ratio_anisotropy,ratio_contacts,ratio_boundary --series group --stats \
 	  --band minmax --size 1500x500 --xlabel "axial strain ln(H0/H)" \
-	  --ylabel "q/p from anisotropy (Eq. 19),q/p from contacts (Eq. 9),q/p from boundary (Eq. 20)" \
+	  --ylabel "q/p from anisotropy (Eq. 19)" --ylabel "q/p from contacts (Eq. 9)" --ylabel "q/p from boundary (Eq. 20)" \
 	  --title "Fig. 18 at the paper's scale" < $< > $(PAPER)/fig18.png
 
 paper: paper-fabric

@@ -61,8 +61,8 @@ paper: $(PAPER)/all.csv $(PAPER)/summary.csv
 	  --stats-out $(PAPER)/fig10.csv --xlabel "axial strain ln(H0/H)" --ylabel "volumetric strain ln(V0/V)" \
 	  --title "Fig. 10 at the paper's scale: mean over seeds, band min-max" < $(PAPER)/all.csv > $(PAPER)/fig10.png
 	plot --x level --y e50_mpa,poisson --stats --band minmax --size 1200x500 \
-	  --xlabel "abrasion level (0: I_P)" --ylabel "E50 (MPa),Poisson's ratio" \
+	  --xlabel "abrasion level (0: I_P)" --ylabel "E50 (MPa)" --ylabel "Poisson's ratio" \
 	  --title "Fig. 11 at the paper's scale" < $(PAPER)/summary.csv > $(PAPER)/fig11.png
 	plot --x level --y friction_angle,dilatancy_angle --stats --band minmax --size 1200x500 \
-	  --xlabel "abrasion level (0: I_P)" --ylabel "peak friction angle (deg),dilatancy angle (deg)" \
+	  --xlabel "abrasion level (0: I_P)" --ylabel "peak friction angle (deg)" --ylabel "dilatancy angle (deg)" \
 	  --title "Fig. 12 at the paper's scale" < $(PAPER)/summary.csv > $(PAPER)/fig12.png

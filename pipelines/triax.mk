@@ -46,13 +46,13 @@ fig10: $(OUT)/triax-all.csv
 fig11: $(OUT)/triax-summary.csv
 	cp $< $(OUT)/fig11.csv
 	plot --x level --y e50_mpa,poisson --xlabel "abrasion level (0: I_P)" \
-	  --ylabel "secant modulus E50 (MPa),Poisson's ratio (initial)" --size 1200x500 \
+	  --ylabel "secant modulus E50 (MPa)" --ylabel "Poisson's ratio (initial)" --size 1200x500 \
 	  --title "Fig. 11: E50 and Poisson's ratio against abrasion" < $< > $(OUT)/fig11.png
 
 fig12: $(OUT)/triax-summary.csv
 	cp $< $(OUT)/fig12.csv
 	plot --x level --y friction_angle,dilatancy_angle --xlabel "abrasion level (0: I_P)" \
-	  --ylabel "peak friction angle (deg),dilatancy angle (deg)" --size 1200x500 \
+	  --ylabel "peak friction angle (deg)" --ylabel "dilatancy angle (deg)" --size 1200x500 \
 	  --title "Fig. 12: peak friction and dilatancy angles against abrasion" < $< > $(OUT)/fig12.png
 
 figtriax: $(foreach g,$(GROUPS),$(OUT)/triax-$(g).jsonl)

@@ -231,3 +231,57 @@ fn render_and_plot_make_pngs() {
     );
     assert_eq!(&png[..4], b"\x89PNG");
 }
+
+/// A label is free text: a comma, a quote and a non-ASCII character stay in it (the label is
+/// drawn: another label gives another picture); several panels take one `--ylabel` each, and
+/// another count of them than `--y` columns is refused.
+#[test]
+fn plot_labels_keep_commas_quotes_and_unicode() {
+    let table = b"x,a,b\n0,1,2\n1,2,3\n2,4,3\n";
+    let label = "q = \"s1 - s3\", kPa (\u{3c3}, \u{e9})";
+    let with = ok(
+        "plot",
+        &[
+            "--x",
+            "x",
+            "--y",
+            "a",
+            "--ylabel",
+            label,
+            "--xlabel",
+            "strain, %",
+        ],
+        table,
+    );
+    assert_eq!(&with[..4], b"\x89PNG");
+    let other = ok(
+        "plot",
+        &[
+            "--x",
+            "x",
+            "--y",
+            "a",
+            "--ylabel",
+            "q",
+            "--xlabel",
+            "strain, %",
+        ],
+        table,
+    );
+    assert!(with != other, "the label is not drawn");
+    let two = ok(
+        "plot",
+        &[
+            "--x", "x", "--y", "a,b", "--ylabel", label, "--ylabel", "b, too",
+        ],
+        table,
+    );
+    assert_eq!(&two[..4], b"\x89PNG");
+    super::fails(
+        "plot",
+        &["--x", "x", "--y", "a", "--ylabel", "one", "--ylabel", "two"],
+        table,
+        2,
+        &["--ylabel is given 2 times for 1 y columns"],
+    );
+}

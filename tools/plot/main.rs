@@ -10,7 +10,8 @@ const EXAMPLES: &str = "\
 Examples:
   roundness < t.csv ... | plot --x k --y s3d --series level > s3d.png
   plot --x k --y s3d --series level,cap --stats --band std --stats-out stats.csv < all.csv > fig7.png
-  plot --x level --y e50,poisson --stats < summaries.csv > fig11.png   (two panels)
+  plot --x level --y e50,poisson --ylabel \"E50 (Pa)\" --ylabel \"Poisson's ratio\" < t.csv > fig11.png
+      (two panels, each with its label: a label is written as it is, commas included)
 
 Without --stats every row is a point and rows of one series are joined in file order. With
 --stats rows are grouped by series and x, and the mean is drawn with a band (--band std: mean
@@ -46,10 +47,12 @@ struct Cli {
     stats_out: Option<std::path::PathBuf>,
     #[arg(long, default_value = "")]
     title: String,
-    /// Axis labels (default: the column names); one y label per panel, comma-separated
+    /// The x axis's label [default: the column's name]
     #[arg(long)]
     xlabel: Option<String>,
-    #[arg(long, value_delimiter = ',')]
+    /// A y axis's label, as written (commas included) [default: the column's name]; give it
+    /// once per --y column, in their order, for several panels
+    #[arg(long)]
     ylabel: Vec<String>,
     /// Picture size WIDTHxHEIGHT
     #[arg(long, default_value = "900x600")]
@@ -96,7 +99,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         .collect::<anyhow::Result<_>>()?;
     if !args.ylabel.is_empty() && args.ylabel.len() != args.y.len() {
         return Err(cli::usage(format!(
-            "--ylabel has {} labels for {} y columns",
+            "--ylabel is given {} times for {} y columns (once per column, or not at all)",
             args.ylabel.len(),
             args.y.len()
         )));
