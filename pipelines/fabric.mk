@@ -11,7 +11,7 @@ FABRIC ?= --rose-bands 5
 .SECONDARY: $(foreach g,$(GROUPS),$(OUT)/fabric-$(g).csv)
 
 $(OUT)/fabric-%.csv: $(OUT)/triax-%.jsonl
-	fabric --quiet --roses $(OUT)/fabric-$*-roses.csv --rose-obj $(OUT)/fabric-$*-roses.obj \
+	fabric --roses $(OUT)/fabric-$*-roses.csv --rose-obj $(OUT)/fabric-$*-roses.obj \
 	  --group $(call group_name,$*) $(FABRIC) < $< > $@.part
 	mv $@.part $@
 
@@ -56,7 +56,7 @@ fig18: $(OUT)/fabric-all.csv
 .SECONDARY: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).fabric.csv)
 
 $(PAPER)/%.fabric.csv: $(PAPER)/%.triax.jsonl
-	fabric --quiet --roses $(PAPER)/$*.roses.csv --rose-obj $(PAPER)/$*.roses.obj \
+	fabric --roses $(PAPER)/$*.roses.csv --rose-obj $(PAPER)/$*.roses.obj \
 	  --group $(call group_name,$(word 1,$(subst -, ,$*)))-$(word 2,$(subst -, ,$*)) < $< > $@.part
 	mv $@.part $@
 
@@ -78,8 +78,8 @@ paper-fabric: $(PAPER)/fabric-all.csv
 	plot --x nominal_strain --y rotation,rotation_accumulated --series group --stats --band minmax \
 	  --size 1200x500 --xlabel "axial strain ln(H0/H)" --ylabel "mean rotation (rad)" --ylabel "accumulated (rad)" \
 	  --title "Fig. 15 at the paper's scale" < $< > $(PAPER)/fig15.png
-	cat $(foreach g,$(GROUPS),$(PAPER)/$(g)-$(firstword $(PAPER_SEEDS)).roses.obj) | render --cols 3 \
-	  --same-scale --size 1200x$(shell echo $$((375 * $(words $(GROUPS))))) --no-edges --elevation 15 \
+	cat $(foreach g,$(PAPER_GROUPS),$(PAPER)/$(g)-$(firstword $(PAPER_SEEDS)).roses.obj) | render --cols 3 \
+	  --same-scale --size 1200x$(shell echo $$((375 * $(words $(PAPER_GROUPS))))) --no-edges --elevation 15 \
 	  --title "Fig. 16 at the paper's scale: roses of the normal contact force" \
 	  > $(PAPER)/fig16.png
 	plot --x nominal_strain --y a_c,a_bn,a_fn,a_ft --series group --stats --band minmax --size 1600x500 \

@@ -3,14 +3,14 @@
 
 TEMPLATE_SEED := 7
 STATS_SEED := 11
-STATS_COUNT := 1000
+STATS_COUNT ?= 1000
 
 # The binaries are built first but do not make the data out of date: a second `make` runs only
 # what is missing (`make clean` starts over).
-$(OUT)/templates.obj: | build $(OUT)
+$(OUT)/templates.obj: | $(BINS) $(OUT)
 	polygen --faces 6..14 --seed $(TEMPLATE_SEED) > $@
 
-fig1: build | $(OUT)
+fig1: | $(BINS) $(OUT)
 	polygen --faces 8 --seed 19 | roundness > $(OUT)/fig1.csv
 	polygen --faces 8 --seed 19 --construction \
 	  | render --same-scale --size 1200x600 --title "Fig. 1: tangent planes of a sphere and the polyhedron they bound" > $(OUT)/fig1.png
@@ -19,7 +19,7 @@ fig2: $(OUT)/templates.obj
 	roundness < $< > $(OUT)/fig2.csv
 	render --cols 5 --size 1500x700 --title "Fig. 2: the nine templates, 6 to 14 faces (seed $(TEMPLATE_SEED))" < $< > $(OUT)/fig2.png
 
-fig4: build | $(OUT)
+fig4: | $(BINS) $(OUT)
 	abrade --levels 0..3 < pipelines/cube.obj | roundness > $(OUT)/fig4.csv
 	abrade --levels 0..3 < pipelines/cube.obj \
 	  | render --cols 4 --same-scale --size 1600x500 --title "Fig. 4: a cube after 0, 1, 2, 3 abrasions (Catmull-Clark)" > $(OUT)/fig4.png
@@ -36,7 +36,7 @@ fig6: $(OUT)/templates.obj
 
 # fig7: S3D statistics over $(STATS_COUNT) random polyhedra per face count and level, with the
 # default elongation cap and without one (cap=inf): the data shows what the cap changes.
-fig7: build | $(OUT)
+fig7: | $(BINS) $(OUT)
 	( polygen --faces 6..14 --count $(STATS_COUNT) --seed $(STATS_SEED) | abrade --levels 0..3 | roundness \
 	    | awk 'NR==1{print $$0",cap";next}{print $$0",5"}' ; \
 	  polygen --faces 6..14 --count $(STATS_COUNT) --seed $(STATS_SEED) --max-elongation inf | abrade --levels 0..3 | roundness \

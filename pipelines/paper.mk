@@ -5,10 +5,13 @@
 
 PAPER := $(OUT)/paper
 PAPER_SEEDS ?= 1 2 3
+PAPER_GROUPS ?= $(GROUPS)
+# The specimen: the container, the particles' sizes, and the calibration sample's scale.
+PAPER_SPECIMEN ?= --diameter 0.3 --height 0.6 --size-min 0.01 --size-max 0.04 --calibration-scale 0.5
 # The paper's tests load at 0.5 /s: on the quick I_P specimen that differs from 0.25 /s by 4 %
 # of peak q up to 5 % of strain (docs/models/triax.md, the rate table), for half the steps.
-PAPER_TRIAX ?= --rate 0.5
-PAPER_RUNS := $(foreach g,$(GROUPS),$(foreach s,$(PAPER_SEEDS),$(g)-$(s)))
+PAPER_TRIAX ?= --rate 0.5 --final-strain 0.15
+PAPER_RUNS ?= $(foreach g,$(PAPER_GROUPS),$(foreach s,$(PAPER_SEEDS),$(g)-$(s)))
 limits = $(shell awk -F, '$$1 == "$(1)" {print $$2 "," $$3}' pipelines/limits.csv)
 
 .SECONDARY: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).spec.jsonl)
@@ -19,8 +22,8 @@ paper-specimens: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).spec.jsonl)
 .SECONDEXPANSION:
 $(PAPER)/%.spec.jsonl: $(OUT)/group-$$(word 1,$$(subst -, ,$$*)).obj
 	mkdir -p $(PAPER)
-	pack --relative-density 0.8 --refine-runs 1 --seed $(word 2,$(subst -, ,$*)) \
-	  --void-ratio-limits $(call limits,$(word 1,$(subst -, ,$*))) --every 20000 \
+	pack $(PAPER_SPECIMEN) --relative-density 0.8 --refine-runs 1 --seed $(word 2,$(subst -, ,$*)) \
+	  --void-ratio-limits $(call limits,$(word 1,$(subst -, ,$*))) \
 	  --summary $(PAPER)/$*.spec.json < $< > $@.part 2> $(PAPER)/$*.spec.log
 	mv $@.part $@
 
@@ -31,7 +34,7 @@ $(PAPER)/%.spec.jsonl: $(OUT)/group-$$(word 1,$$(subst -, ,$$*)).obj
 # A test stopped part way (a job's time limit) goes on from its last whole frame when its
 # target is made again (pipelines/triax-resume.sh).
 $(PAPER)/%.triax.jsonl: $(PAPER)/%.spec.jsonl
-	pipelines/triax-resume.sh $< $@ $(PAPER_TRIAX) --quiet --summary $(PAPER)/$*.triax.json \
+	pipelines/triax-resume.sh $< $@ $(PAPER_TRIAX) --summary $(PAPER)/$*.triax.json \
 	  --csv $(PAPER)/$*.triax.csv --obj $(PAPER)/$*.triax.obj --obj-group $* \
 	  2>> $(PAPER)/$*.triax.log
 

@@ -6,7 +6,7 @@
 # one JSON line each (docs/models/pack.md, "Output").
 
 SPECIMEN ?= --diameter 0.15 --height 0.3
-GROUPS := ip ab1 ab2 ab3
+GROUPS ?= ip ab1 ab2 ab3
 
 # The specimens are worth keeping (dem runs on from them); a failed step leaves no output.
 .SECONDARY: $(foreach g,$(GROUPS),$(OUT)/group-$(g).obj $(OUT)/specimen-$(g).jsonl)
@@ -20,7 +20,7 @@ $(OUT)/group-ab%.obj: $(OUT)/templates.obj
 
 # The specimen's state, its summary, and its bodies as OBJ objects of one render cell.
 $(OUT)/specimen-%.jsonl: $(OUT)/group-%.obj
-	pack $(SPECIMEN) --every 50000 --summary $(OUT)/specimen-$*.json < $< > $@.part
+	pack $(SPECIMEN) --summary $(OUT)/specimen-$*.json < $< > $@.part
 	mv $@.part $@
 
 $(OUT)/specimen-%.obj: $(OUT)/specimen-%.jsonl

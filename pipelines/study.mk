@@ -18,16 +18,15 @@ $(STUDY)/%-1.triax.jsonl: $(OUT)/triax-%.jsonl
 
 $(STUDY)/%.spec.jsonl: $(OUT)/group-$$(word 1,$$(subst -, ,$$*)).obj
 	mkdir -p $(STUDY)
-	pack $(SPECIMEN) --seed $(word 2,$(subst -, ,$*)) --every 50000 \
+	pack $(SPECIMEN) --seed $(word 2,$(subst -, ,$*)) \
 	  --summary $(STUDY)/$*.spec.json < $< > $@.part
 	mv $@.part $@
 
 $(STUDY)/%.triax.jsonl: $(STUDY)/%.spec.jsonl
-	triax $(TRIAX) --quiet --summary $(STUDY)/$*.triax.json < $< > $@.part
-	mv $@.part $@
+	pipelines/triax-resume.sh $< $@ $(TRIAX) --summary $(STUDY)/$*.triax.json
 
 $(STUDY)/%.fabric.csv: $(STUDY)/%.triax.jsonl
-	fabric --quiet < $< > $@.part
+	fabric < $< > $@.part
 	mv $@.part $@
 
 $(STUDY)/runs.csv: $(foreach r,$(STUDY_RUNS),$(STUDY)/$(r).fabric.csv)

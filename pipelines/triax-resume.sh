@@ -4,11 +4,21 @@
 # resumed run had added), is cut after its last whole frame (a checkpoint in consolidation or
 # a frame of loading) and the test resumes from it. OUT is then the stream of a run in one go,
 # byte for byte (docs/formats/triax-stream.md). Without a whole frame it starts from SPEC.
+# One run at a time writes OUT.part: a second one (the same target made or submitted again
+# while the first still runs) stops at once, with a message (a lock on OUT.lock, by flock).
 # Usage: pipelines/triax-resume.sh SPEC OUT [TRIAX OPTIONS...]
 set -euo pipefail
 spec=$1 out=$2
 shift 2
 part=$out.part rest=$out.rest
+say() { echo "${GRANULAR_TAG:+[$GRANULAR_TAG] }triax-resume: $*" >&2; }
+if command -v flock > /dev/null; then
+  exec 9> "$out.lock"
+  if ! flock -n 9; then
+    say "$out is being made by another run (it holds $out.lock): not started twice"
+    exit 1
+  fi
+fi
 if [ -e "$rest" ]; then
   cat "$part" "$rest" > "$part.new"
   mv "$part.new" "$part"
@@ -25,7 +35,7 @@ if [ -s "$part" ]; then
               END { print last + 0 }' "$part")
 fi
 if [ "$last" -gt 0 ]; then
-  echo "triax-resume: $out goes on from line $last of $part" >&2
+  say "$out goes on from line $last of $part"
   head -n "$last" "$part" > "$part.new"
   mv "$part.new" "$part"
   triax "$@" < "$part" > "$rest"

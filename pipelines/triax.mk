@@ -6,7 +6,7 @@
 #   fig11: E50 and Poisson's ratio against the abrasion level; fig12: peak friction and
 #   dilatancy angles; figtriax: the specimens at the end.
 
-TRIAX ?= --rate 1
+TRIAX ?= --rate 1 --final-strain 0.15
 LEVEL_ip := 0
 LEVEL_ab1 := 1
 LEVEL_ab2 := 2
@@ -14,11 +14,12 @@ LEVEL_ab3 := 3
 
 .SECONDARY: $(foreach g,$(GROUPS),$(OUT)/triax-$(g).jsonl)
 
+# A test stopped part way goes on from its last whole frame when its target is made again
+# (pipelines/triax-resume.sh).
 $(OUT)/triax-%.jsonl: $(OUT)/specimen-%.jsonl
-	triax $(TRIAX) --quiet --summary $(OUT)/triax-$*.json --csv $(OUT)/triax-$*.csv \
+	pipelines/triax-resume.sh $< $@ $(TRIAX) --summary $(OUT)/triax-$*.json --csv $(OUT)/triax-$*.csv \
 	  --obj $(OUT)/triax-$*.obj --obj-group $(subst ip,I_P,$(subst ab,Ab_,$*)) \
-	  --vtk $(OUT)/triax-$*-vtk < $< > $@.part
-	mv $@.part $@
+	  --vtk $(OUT)/triax-$*-vtk
 
 # The four groups' measurements in one table, with a group column.
 $(OUT)/triax-all.csv: $(foreach g,$(GROUPS),$(OUT)/triax-$(g).jsonl)

@@ -5,7 +5,7 @@
 
 use crate::geometry::obj::{Item, ObjObject, ObjReader};
 use rayon::prelude::*;
-use std::io::{self, BufRead, BufWriter, IsTerminal};
+use std::io::{self, BufRead, BufWriter, IsTerminal, Write};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
@@ -16,11 +16,11 @@ pub fn run(tool: &str, body: impl FnOnce() -> anyhow::Result<()>) -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) if e.downcast_ref::<Usage>().is_some() => {
-            eprintln!("{tool}: {e}");
+            eprintln!("{}{e}", prefix(tool));
             ExitCode::from(2)
         }
         Err(e) => {
-            let mut msg = format!("{tool}: {e}");
+            let mut msg = format!("{}{e}", prefix(tool));
             for cause in e.chain().skip(1) {
                 msg.push_str(&format!(": {cause}"));
             }
@@ -145,42 +145,170 @@ pub fn provenance(tool: &str) -> String {
         .to_string()
 }
 
-/// Progress on standard error, shown only when it is a terminal, at most twice a second.
+/// The name that prefixes every line a tool writes on standard error, `[NAME] tool: ...`:
+/// the environment's `GRANULAR_TAG` (the Makefile sets it to each target, so that the lines of
+/// parallel jobs can be told apart), or none.
+pub fn tag() -> Option<&'static str> {
+    static TAG: std::sync::OnceLock<Option<String>> = std::sync::OnceLock::new();
+    TAG.get_or_init(|| {
+        std::env::var("GRANULAR_TAG")
+            .ok()
+            .filter(|t| !t.trim().is_empty())
+    })
+    .as_deref()
+}
+
+/// What starts a tool's line on standard error: `[tag] tool: `, or `tool: `.
+pub fn prefix(tool: &str) -> String {
+    match tag() {
+        Some(t) => format!("[{t}] {tool}: "),
+        None => format!("{tool}: "),
+    }
+}
+
+/// Seconds between progress lines in a log (standard error not a terminal, or a parallel
+/// make): `GRANULAR_PROGRESS_SECONDS`, default 5.
+fn log_interval() -> Duration {
+    let secs = std::env::var("GRANULAR_PROGRESS_SECONDS")
+        .ok()
+        .and_then(|s| s.trim().parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s >= 0.0)
+        .unwrap_or(5.0);
+    Duration::from_secs_f64(secs.min(86_400.0))
+}
+
+/// Whether this process runs under a make that runs jobs in parallel (`make -j`): their
+/// lines redrawn in place on one terminal would overwrite each other.
+fn under_parallel_make() -> bool {
+    std::env::var("MAKEFLAGS").is_ok_and(|f| {
+        f.split_whitespace()
+            .any(|w| w.starts_with("-j") || w.starts_with("--jobserver"))
+    })
+}
+
+/// How progress is shown.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Show {
+    /// One line redrawn in place (standard error is a terminal).
+    Live,
+    /// A line of its own every [`log_interval`] (a log, or parallel jobs on a terminal).
+    Lines,
+    /// Nothing (`--quiet`).
+    Off,
+}
+
+/// Progress and messages on standard error, each line prefixed as [`prefix`] says. A status
+/// ([`Progress::status`]) is shown at most every half second, redrawn in place on a terminal,
+/// or as a line of its own every few seconds in a log ([`log_interval`]); a message
+/// ([`Progress::say`]) always stays. Shared between threads.
 pub struct Progress {
-    tool: &'static str,
-    show: bool,
-    last: Instant,
+    prefix: String,
+    show: Show,
+    every: Duration,
     start: Instant,
+    /// When the last status was shown, and whether it is a live line still on screen.
+    shown: std::sync::Mutex<(Option<Instant>, bool)>,
 }
 
 impl Progress {
     pub fn new(tool: &'static str) -> Self {
-        let now = Instant::now();
+        let live = io::stderr().is_terminal() && !under_parallel_make();
+        let (show, every) = if live {
+            (Show::Live, Duration::from_millis(500))
+        } else {
+            (Show::Lines, log_interval())
+        };
         Progress {
-            tool,
-            show: io::stderr().is_terminal(),
-            last: now,
-            start: now,
+            prefix: prefix(tool),
+            show,
+            every,
+            start: Instant::now(),
+            shown: std::sync::Mutex::new((None, false)),
         }
     }
 
-    /// Reports `done` units of `what`.
-    pub fn tick(&mut self, done: u64, what: &str) {
-        if self.show && self.last.elapsed() > Duration::from_millis(500) {
-            self.last = Instant::now();
-            eprint!(
-                "\r{}: {done} {what} ({:.1} s)",
-                self.tool,
-                self.start.elapsed().as_secs_f64()
-            );
+    /// Progress that shows nothing, messages included (a tool's `--quiet`).
+    pub fn quiet(tool: &'static str) -> Self {
+        Progress {
+            show: Show::Off,
+            ..Progress::new(tool)
         }
     }
 
-    /// Ends the progress line.
+    /// Seconds since the progress was made.
+    pub fn elapsed(&self) -> f64 {
+        self.start.elapsed().as_secs_f64()
+    }
+
+    /// Shows the status `line()` makes, if the last was shown long enough ago (in a log, the
+    /// first comes one interval after the start); `line` is not called otherwise.
+    pub fn status(&self, line: impl FnOnce() -> String) {
+        if self.show == Show::Off {
+            return;
+        }
+        let mut shown = self.shown.lock().unwrap_or_else(|p| p.into_inner());
+        if shown.0.unwrap_or(self.start).elapsed() < self.every {
+            return;
+        }
+        let text = line();
+        let mut err = io::stderr().lock();
+        let _ = match self.show {
+            Show::Live => write!(err, "\r\x1b[K{}{text}", self.prefix),
+            _ => writeln!(err, "{}{text}", self.prefix),
+        };
+        let _ = err.flush();
+        *shown = (Some(Instant::now()), self.show == Show::Live);
+    }
+
+    /// Writes a message that stays, on a line of its own (after a live status, if one is on
+    /// screen).
+    pub fn say(&self, msg: &str) {
+        if self.show == Show::Off {
+            return;
+        }
+        let mut shown = self.shown.lock().unwrap_or_else(|p| p.into_inner());
+        let mut err = io::stderr().lock();
+        let clear = if shown.1 { "\r\x1b[K" } else { "" };
+        let _ = writeln!(err, "{clear}{}{msg}", self.prefix);
+        shown.1 = false;
+    }
+
+    /// Reports `done` units of `what` (of `total`, when known: with the share done and the
+    /// time left at the rate so far).
+    pub fn tick(&self, done: u64, total: Option<u64>, what: &str) {
+        self.status(|| {
+            let secs = self.elapsed();
+            match total.filter(|&t| t > 0 && done > 0) {
+                Some(t) => format!(
+                    "{done} of {t} {what} ({:.0} %), {secs:.0} s, about {} left",
+                    100.0 * done as f64 / t as f64,
+                    duration(secs * (t.saturating_sub(done)) as f64 / done as f64)
+                ),
+                None => format!("{done} {what} ({secs:.1} s)"),
+            }
+        })
+    }
+
+    /// Ends a live status line, if one is on screen.
     pub fn finish(&self) {
-        if self.show && self.start.elapsed() > Duration::from_millis(500) {
+        let mut shown = self.shown.lock().unwrap_or_else(|p| p.into_inner());
+        if shown.1 {
             eprintln!();
+            shown.1 = false;
         }
+    }
+}
+
+/// A duration for people: `42 s`, `7 min`, `2.5 h`.
+pub fn duration(secs: f64) -> String {
+    if !secs.is_finite() {
+        "an unknown time".into()
+    } else if secs < 90.0 {
+        format!("{secs:.0} s")
+    } else if secs < 5400.0 {
+        format!("{:.0} min", secs / 60.0)
+    } else {
+        format!("{:.1} h", secs / 3600.0)
     }
 }
 
@@ -242,7 +370,7 @@ pub fn for_each_object<R: BufRead + Send, T: Send>(
     mut emit: impl FnMut(Emit<T>) -> anyhow::Result<()>,
 ) -> anyhow::Result<u64> {
     let mut reader = ObjReader::new(input);
-    let mut progress = Progress::new(tool);
+    let progress = Progress::new(tool);
     let mut count = 0u64;
     // Reading the next batch overlaps with the work on this one.
     let mut current = read_batch(&mut reader, batch);
@@ -276,7 +404,7 @@ pub fn for_each_object<R: BufRead + Send, T: Send>(
             count += matches!(e, Emit::Done(_)) as u64;
             emit(e)?;
         }
-        progress.tick(count, "objects");
+        progress.tick(count, None, "objects");
         if let Some(e) = read_error {
             return Err(e.into());
         }
@@ -322,4 +450,13 @@ pub fn parse_range<T: std::str::FromStr + PartialOrd + Copy>(s: &str) -> Result<
         }
         None => parse(s).map(|a| (a, a)),
     }
+}
+
+/// `eprintln!` for a tool's message: `note!("pack", "{n} particles")` writes the line after
+/// the tool's [`prefix`] (`[tag] pack: ` or `pack: `).
+#[macro_export]
+macro_rules! note {
+    ($tool:expr, $($arg:tt)*) => {
+        eprintln!("{}{}", $crate::cli::prefix($tool), format_args!($($arg)*))
+    };
 }

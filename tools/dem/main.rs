@@ -232,8 +232,8 @@ fn warn_of_deep_overlap(world: &World) {
                 Partner::Body(a) => format!("bodies {a} and {b} overlap"),
                 Partner::Wall(w) => format!("body {b} overlaps wall {w}"),
             };
-            eprintln!(
-                "dem: warning: {with} by {share:.3} of the smaller's bounding radius after the first step \
+            shared::note!(
+                "dem", "warning: {with} by {share:.3} of the smaller's bounding radius after the first step \
                  (more than {DEEP_OVERLAP}): bodies placed inside each other are flung apart; place them apart, \
                  as pack does"
             );
@@ -313,15 +313,18 @@ fn run(args: Cli) -> anyhow::Result<()> {
         }
         let critical = world.critical_dt();
         world.dt = world.time_step(args.safety)?;
-        eprintln!(
-            "dem: time step {:.4e} s = {} x critical {:.4e} s",
-            world.dt, args.safety, critical
+        shared::note!(
+            "dem",
+            "time step {:.4e} s = {} x critical {:.4e} s",
+            world.dt,
+            args.safety,
+            critical
         );
     }
     let critical = world.critical_dt();
     if world.dt > critical {
-        eprintln!(
-            "dem: warning: the time step {:.4e} s is above the critical {critical:.4e} s: the run is unstable",
+        shared::note!(
+            "dem", "warning: the time step {:.4e} s is above the critical {critical:.4e} s: the run is unstable",
             world.dt
         );
     }
@@ -380,7 +383,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let mut progress = cli::Progress::new("dem");
+    let progress = cli::Progress::new("dem");
     let start = std::time::Instant::now();
     let mut ran = 0;
     // The steps run on the pool (see `on_pool`).
@@ -411,7 +414,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                     s.write(&world).context("writing a VTK snapshot")?;
                 }
             }
-            progress.tick(k + 1, "steps");
+            progress.tick(k + 1, Some(steps), "steps");
             if done {
                 break;
             }
@@ -421,9 +424,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
     if let Some(r) = args.until_unbalanced {
         let ratio = world.unbalanced;
         if ratio < r {
-            eprintln!("dem: unbalanced-force ratio {ratio:.3e} < {r} after {ran} steps");
+            shared::note!(
+                "dem",
+                "unbalanced-force ratio {ratio:.3e} < {r} after {ran} steps"
+            );
         } else {
-            eprintln!("dem: warning: unbalanced-force ratio still {ratio:.3e} (>= {r}) after the limit of {ran} steps");
+            shared::note!("dem", "warning: unbalanced-force ratio still {ratio:.3e} (>= {r}) after the limit of {ran} steps");
         }
     }
     let steps = ran;
@@ -442,8 +448,8 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 Partner::Wall(_) => 1,
             })
             .sum();
-        eprintln!(
-            "dem: {steps} steps of {} bodies in {secs:.2} s ({:.3e} particle-steps/s), {} contacts at the end ({:.2} per particle)",
+        shared::note!(
+            "dem", "{steps} steps of {} bodies in {secs:.2} s ({:.3e} particle-steps/s), {} contacts at the end ({:.2} per particle)",
             world.bodies.len(),
             steps as f64 * world.bodies.len() as f64 / secs.max(1e-9),
             world.contacts.len(),
@@ -451,21 +457,23 @@ fn run(args: Cli) -> anyhow::Result<()> {
         );
         let t = world.times;
         let share = |x: f64| 100.0 * x / t.total().max(1e-300);
-        eprintln!(
-            "dem: step time {:.2} s: broad phase {:.1} %, narrow phase (body pairs, walls beside) {:.1} %, forces, motion and contact list {:.1} %",
+        shared::note!(
+            "dem", "step time {:.2} s: broad phase {:.1} %, narrow phase (body pairs, walls beside) {:.1} %, forces, motion and contact list {:.1} %",
             t.total(),
             share(t.broad),
             share(t.narrow),
             share(t.integration)
         );
-        eprintln!(
-            "dem: broad phase swept {} times in {} steps (its kept list served the others)",
+        shared::note!(
+            "dem",
+            "broad phase swept {} times in {} steps (its kept list served the others)",
             world.broad_sweeps(),
             steps
         );
         if let Some(kib) = peak_resident_kib() {
-            eprintln!(
-                "dem: peak resident memory {:.1} MiB ({:.1} KiB per particle, all included)",
+            shared::note!(
+                "dem",
+                "peak resident memory {:.1} MiB ({:.1} KiB per particle, all included)",
                 kib as f64 / 1024.0,
                 kib as f64 / world.bodies.len() as f64
             );

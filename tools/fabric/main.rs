@@ -281,7 +281,7 @@ impl Table {
 
 /// Reads the stream and writes a row per state; returns the roses to keep (start, peak, end).
 fn rows(args: &Cli, table: &mut Table) -> anyhow::Result<Vec<Kept>> {
-    let mut progress = cli::Progress::new("fabric");
+    let progress = cli::Progress::new("fabric");
     let mut first: Option<(Vec<(u32, f64)>, usize)> = None;
     let mut rotations: Option<Rotations> = None;
     let mut measure: Option<Measure> = None;
@@ -354,8 +354,8 @@ fn rows(args: &Cli, table: &mut Table) -> anyhow::Result<Vec<Kept>> {
                                 n if n < 2 => format!("{n} bodies; "),
                                 _ => String::new(),
                             };
-                            eprintln!(
-                                "fabric: state {count} (line {line}): no fabric ({bodies}{e}): its anisotropy columns are empty"
+                            shared::note!(
+                                "fabric", "state {count} (line {line}): no fabric ({bodies}{e}): its anisotropy columns are empty"
                             );
                         }
                         None
@@ -385,7 +385,7 @@ fn rows(args: &Cli, table: &mut Table) -> anyhow::Result<Vec<Kept>> {
                 });
                 count += 1;
                 if !args.quiet {
-                    progress.tick(count as u64, "states");
+                    progress.tick(count as u64, None, "states");
                 }
             }
         }

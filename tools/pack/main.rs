@@ -209,22 +209,70 @@ struct Cli {
     /// collections for ParaView) into DIR: one with every progress line, and the specimen
     #[arg(long, value_name = "DIR")]
     vtk: Option<std::path::PathBuf>,
-    /// Steps between progress lines on standard error
+    /// Steps between VTK snapshots (--vtk); progress goes to standard error every few
+    /// seconds
     #[arg(long, default_value_t = 5000)]
     every: u64,
 }
 
-/// One progress line of a calibration or limits run at preparation friction `f`.
-fn report_calibration(f: f64, s: &pack::Status) {
-    report_run("calibration", f, s)
+/// Steps between the engine's reports to the progress line (each a cheap look at the clock).
+const REPORT_STEPS: u64 = 100;
+
+/// The progress of a preparation that runs several compactions: which run of how many, what
+/// it is for, and its steps a second.
+struct Runs {
+    progress: cli::Progress,
+    /// The runs counted so far, and the most there will be.
+    run: u32,
+    total: u32,
+    /// When the current run started, and its last step seen.
+    clock: std::time::Instant,
+    last: u64,
+    /// The unbalanced-force ratio each phase ends below: compaction, equilibrium.
+    targets: [f64; 2],
 }
 
-/// One progress line of a run of `what` at preparation friction `f`.
-fn report_run(what: &str, f: f64, s: &pack::Status) {
-    eprintln!(
-        "pack: {what} at friction {f:.4}, {} step {}: wall stresses {} Pa, porosity {:.4}, unbalanced {:.3e}",
-        s.phase, s.step, stresses(&s.stresses), s.porosity, s.unbalanced
-    )
+impl Runs {
+    fn new(total: u32, targets: [f64; 2]) -> Runs {
+        Runs {
+            progress: cli::Progress::new("pack"),
+            run: 0,
+            total,
+            clock: std::time::Instant::now(),
+            last: 0,
+            targets,
+        }
+    }
+
+    /// A status of a run of `what` at preparation friction `f` (a new run when its steps
+    /// start again).
+    fn report(&mut self, what: &str, f: f64, s: &pack::Status) {
+        if self.run == 0 || s.step < self.last {
+            self.run += 1;
+            self.clock = std::time::Instant::now();
+        }
+        self.last = s.step;
+        let (run, total) = (self.run, self.total.max(self.run));
+        let target = match s.phase {
+            "compaction" => self.targets[0],
+            _ => self.targets[1],
+        };
+        let speed = s.step as f64 / self.clock.elapsed().as_secs_f64().max(1e-9);
+        self.progress.status(|| {
+            format!(
+                "run {run} of {total} ({what} at friction {f:.4}): {} step {}: wall stresses {} Pa, porosity {:.4}, unbalanced {:.3e} (ends below {target:.0e}), {speed:.0} steps/s",
+                s.phase,
+                s.step,
+                stresses(&s.stresses),
+                s.porosity,
+                s.unbalanced
+            )
+        });
+    }
+
+    fn say(&self, msg: &str) {
+        self.progress.say(msg)
+    }
 }
 
 /// Wall stresses for a progress line: "1.0000e5 9.9000e4 ...".
@@ -352,6 +400,22 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let clock = std::time::Instant::now();
     let mut params = params;
     let mut limits = args.void_ratio_limits;
+    let total = if args.limits_only {
+        2
+    } else {
+        match args.relative_density {
+            Some(_) => {
+                let refine = if limits.is_some() {
+                    args.refine_runs
+                } else {
+                    0
+                };
+                3 + args.calibration_runs as u32 + refine as u32
+            }
+            None => 1,
+        }
+    };
+    let mut runs = Runs::new(total, [params.prep_unbalanced, params.unbalanced]);
     if let Some((lo, hi)) = limits {
         if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo < hi) {
             return Err(cli::usage(format!(
@@ -365,15 +429,15 @@ fn run(args: Cli) -> anyhow::Result<()> {
             &params,
             args.calibration_scale,
             args.loose_friction,
-            args.every,
-            report_calibration,
+            REPORT_STEPS,
+            |f, s| runs.report("limits", f, s),
         )
         .map_err(flagged)?;
         let secs = clock.elapsed().as_secs_f64();
-        eprintln!(
-            "pack: void-ratio limits on {} particles (scale {}): e_min {:.4} (friction 0), e_max {:.4} (friction {}) in {secs:.1} s; --void-ratio-limits {:.4},{:.4}",
+        runs.say(&format!(
+            "void-ratio limits on {} particles (scale {}): e_min {:.4} (friction 0), e_max {:.4} (friction {}) in {secs:.1} s; --void-ratio-limits {:.4},{:.4}",
             l.particles, l.scale, l.e_min, l.e_max, l.loose_friction, l.e_min, l.e_max
-        );
+        ));
         let mut line = serde_json::to_value(&l)?;
         line["wall_clock"] = serde_json::json!(secs);
         let text = format!("{line}\n");
@@ -394,19 +458,19 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 args.calibration_scale,
                 args.loose_friction,
                 args.calibration_runs,
-                args.every,
-                report_calibration,
+                REPORT_STEPS,
+                |f, s| runs.report("calibration", f, s),
             )
             .map_err(flagged)?;
-            eprintln!(
-                "pack: calibration on {} particles: e_min {:.4} (friction 0), e_max {:.4} (friction {}), runs {:?}; preparation friction {:.4} for Dr {dr}",
+            runs.say(&format!(
+                "calibration on {} particles: e_min {:.4} (friction 0), e_max {:.4} (friction {}), runs {:?}; preparation friction {:.4} for Dr {dr}",
                 c.limits.particles, c.limits.e_min, c.limits.e_max, c.limits.loose_friction, c.runs, c.prep_friction
-            );
+            ));
             params.prep_friction = c.prep_friction;
             if let Some((lo, hi)) = limits {
-                eprintln!(
-                    "pack: the specimen's Dr is reported against --void-ratio-limits {lo},{hi}, not the sample's"
-                );
+                runs.say(&format!(
+                    "the specimen's Dr is reported against --void-ratio-limits {lo},{hi}, not the sample's"
+                ));
             } else {
                 limits = Some((c.limits.e_min, c.limits.e_max));
             }
@@ -422,14 +486,14 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 c,
                 given,
                 args.refine_runs,
-                args.every,
-                |f, s| report_run("refinement", f, s),
+                REPORT_STEPS,
+                |f, s| runs.report("refinement", f, s),
             )
             .map_err(flagged)?;
-            eprintln!(
-                "pack: refinement at full size: target e {:.4}, runs {:?}; preparation friction {:.4}",
+            runs.say(&format!(
+                "refinement at full size: target e {:.4}, runs {:?}; preparation friction {:.4}",
                 r.target, r.runs, r.prep_friction
-            );
+            ));
             params.prep_friction = r.prep_friction;
             Some(r)
         }
@@ -438,13 +502,13 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let mut world = pack::cloud(shapes, &params).map_err(flagged)?;
     let prep_dt = world.dt;
     let cloud = boundary::container(&world).context("the loose cloud has no container")?;
-    eprintln!(
-        "pack: {} particles of {} templates in a loose cloud {}; time step {:.4e} s",
+    runs.say(&format!(
+        "{} particles of {} templates in a loose cloud {}; time step {:.4e} s",
         world.bodies.len(),
         world.shapes.len(),
         cloud.describe(),
         world.dt
-    );
+    ));
     let mut snapshots = match &args.vtk {
         Some(dir) => Some(
             shared::dem::io::vtk::Snapshots::new(dir)
@@ -453,17 +517,15 @@ fn run(args: Cli) -> anyhow::Result<()> {
         None => None,
     };
     let mut vtk_error = None;
-    pack::consolidate(&mut world, &params, args.every, |s, w| {
-        eprintln!(
-            "pack: {} step {}: wall stresses {} Pa, porosity {:.4}, unbalanced {:.3e}",
-            s.phase,
-            s.step,
-            stresses(&s.stresses),
-            s.porosity,
-            s.unbalanced
-        );
-        if let (Some(v), None) = (snapshots.as_mut(), &vtk_error) {
-            vtk_error = v.write(w).err();
+    // The engine reports every `report` steps: to the progress line, and a VTK snapshot at
+    // each --every.
+    let report = gcd(REPORT_STEPS, args.every);
+    pack::consolidate(&mut world, &params, report, |s, w| {
+        runs.report("specimen", params.prep_friction, s);
+        if s.step % args.every == 0 {
+            if let (Some(v), None) = (snapshots.as_mut(), &vtk_error) {
+                vtk_error = v.write(w).err();
+            }
         }
     })
     .map_err(flagged)?;
@@ -487,10 +549,10 @@ fn run(args: Cli) -> anyhow::Result<()> {
         line["e_max"] = serde_json::json!(e_max);
         let dr = (e_max - summary.void_ratio) / (e_max - e_min);
         line["relative_density"] = serde_json::json!(dr);
-        eprintln!(
-            "pack: relative density {dr:.3} (e_min {e_min:.4}, e_max {e_max:.4}, e {:.4})",
+        runs.say(&format!(
+            "relative density {dr:.3} (e_min {e_min:.4}, e_max {e_max:.4}, e {:.4})",
             summary.void_ratio
-        );
+        ));
     }
     if let Some(c) = &calibration {
         line["calibration"] = serde_json::to_value(c)?;
@@ -499,18 +561,18 @@ fn run(args: Cli) -> anyhow::Result<()> {
         line["refinement"] = serde_json::to_value(r)?;
     }
     let specimen = boundary::container(&world).context("the specimen has no container")?;
-    eprintln!(
-        "pack: {} particles, {}: porosity {:.4}, void ratio {:.4}, coordination {:.3} ({:.3} without rattlers)",
+    runs.say(&format!(
+        "{} particles, {}: porosity {:.4}, void ratio {:.4}, coordination {:.3} ({:.3} without rattlers)",
         summary.particles, specimen.describe(), summary.porosity, summary.void_ratio,
         summary.coordination, summary.mechanical_coordination
-    );
-    eprintln!(
-        "pack: wall stresses {} Pa (largest error {:.2} %), unbalanced {:.3e}, anisotropy {:.4} (sampling alone: {:.4}), largest overlap {:.3e} of a size, {} outside; {} steps in {:.1} s",
+    ));
+    runs.say(&format!(
+        "wall stresses {} Pa (largest error {:.2} %), unbalanced {:.3e}, anisotropy {:.4} (sampling alone: {:.4}), largest overlap {:.3e} of a size, {} outside; {} steps in {:.1} s",
         stresses(&summary.wall_stresses),
         100.0 * summary.stress_error, summary.unbalanced, summary.anisotropy,
         summary.anisotropy_noise.unwrap_or(f64::NAN), summary.max_overlap,
         summary.outside, summary.steps, secs
-    );
+    ));
     if let Some(path) = &args.summary {
         let mut f =
             std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
@@ -533,5 +595,14 @@ mod tests {
     fn cli_is_well_formed() {
         use clap::CommandFactory;
         super::Cli::command().debug_assert();
+    }
+}
+
+/// The greatest common divisor of two step counts (at least 1).
+fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 {
+        a.max(1)
+    } else {
+        gcd(b, a % b)
     }
 }

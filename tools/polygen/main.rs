@@ -86,7 +86,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
         args.max_elongation
     ))?;
     let mut total = Redraws::default();
-    let mut progress = cli::Progress::new("polygen");
+    let progress = cli::Progress::new("polygen");
     loop {
         chunk.clear();
         chunk.extend(jobs.by_ref().take(512));
@@ -117,7 +117,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
             }
         }
         done += chunk.len() as u64;
-        progress.tick(done, "polyhedra");
+        progress.tick(done, u64::try_from(total_jobs).ok(), "polyhedra");
     }
     progress.finish();
     out.comment(&format!(

@@ -201,26 +201,34 @@ fn write_frame(
 }
 
 /// Consolidates `test` (new, or resumed from a frame in consolidation), writing a frame to
-/// `out` every `checkpoint` steps and the progress to `say`.
+/// `out` every `checkpoint` steps and its progress to `progress`.
 fn consolidate(
     test: &mut Triax,
     checkpoint: u64,
     out: &mut (impl Write + Send),
-    say: &(impl Fn(String) + Sync),
+    progress: &cli::Progress,
 ) -> anyhow::Result<()> {
     let mut failure: Option<anyhow::Error> = None;
-    let mut report = |e: Event| match e {
-        Event::Consolidating(step, s, u) => say(format!(
-            "consolidation step {step}: platens {:.4e} {:.4e} Pa, unbalanced {u:.3e}",
-            s[0], s[1]
-        )),
-        Event::Checkpoint(w, progress) if failure.is_none() => {
-            failure = write_frame(out, w, progress, 0.0).err();
+    let (clock, first) = (std::time::Instant::now(), test.world.step);
+    // Steps of consolidation before this run (resumed from a checkpoint).
+    let (target, before) = (test.params.unbalanced, first - test.progress.start_step);
+    let mut report = |e: Event| {
+        match e {
+        Event::Consolidating(step, s, u) => progress.status(|| {
+            format!(
+                "consolidation step {step}: platens {:.4e} {:.4e} Pa, unbalanced {u:.3e} (ends below {target:.0e}), {:.0} steps/s",
+                s[0],
+                s[1],
+                per_second(step - before, clock),
+            )
+        }),
+        Event::Checkpoint(w, p) if failure.is_none() => {
+            failure = write_frame(out, w, p, 0.0).err();
         }
         _ => {}
+    }
     };
-    let (clock, first) = (std::time::Instant::now(), test.world.step);
-    test.consolidate(2_000, checkpoint, &mut report)?;
+    test.consolidate(CONSOLIDATION_REPORT, checkpoint, &mut report)?;
     if let Some(e) = failure {
         return Err(e);
     }
@@ -235,11 +243,19 @@ fn consolidate(
     } else {
         format!("the last {ran} in {secs:.1} s")
     };
-    say(format!(
+    progress.say(&format!(
         "consolidated in {all} steps ({took}); loading at {} /s to axial strain {}",
         test.params.rate, test.params.final_strain
     ));
     Ok(())
+}
+
+/// Steps of consolidation between the engine's reports (each a cheap check of the time).
+const CONSOLIDATION_REPORT: u64 = 100;
+
+/// Steps a second since `clock` started, `steps` of them run.
+fn per_second(steps: u64, clock: std::time::Instant) -> f64 {
+    steps as f64 / clock.elapsed().as_secs_f64().max(1e-9)
 }
 
 const FORMAT: &str = "granular-triax";
@@ -295,6 +311,8 @@ enum Input {
         /// The measurements before the frame resumed from, and the first frame's orientations.
         series: Vec<Measure>,
         start: Option<Vec<nalgebra::UnitQuaternion<f64>>>,
+        /// The times of the loading frames so far (each a VTK snapshot, with --vtk).
+        frames: Vec<f64>,
     },
 }
 
@@ -331,6 +349,7 @@ fn read_stream(input: impl BufRead) -> anyhow::Result<Input> {
     let mut frame: Option<(FrameRecord, usize)> = None;
     let mut last: Option<(World, Progress)> = None;
     let mut start = None;
+    let mut frames = Vec::new();
     for item in StateStream::new(input) {
         match item? {
             Item::Record(v, n) => match v.get("type").and_then(|t| t.as_str()) {
@@ -368,8 +387,11 @@ fn read_stream(input: impl BufRead) -> anyhow::Result<Input> {
                     );
                 }
                 // Rotations count from the start of loading, not from a frame in consolidation.
-                if start.is_none() && f.progress.phase == "loading" {
-                    start = Some(w.bodies.iter().map(|b| b.rot).collect());
+                if f.progress.phase == "loading" {
+                    if start.is_none() {
+                        start = Some(w.bodies.iter().map(|b| b.rot).collect());
+                    }
+                    frames.push(w.time);
                 }
                 series.append(&mut pending);
                 last = Some((*w, f.progress));
@@ -391,6 +413,7 @@ fn read_stream(input: impl BufRead) -> anyhow::Result<Input> {
         progress,
         series,
         start,
+        frames,
     })
 }
 
@@ -468,15 +491,15 @@ fn run(args: Cli) -> anyhow::Result<()> {
         cli::check_output(path.as_deref(), flag)?;
     }
     let clock = std::time::Instant::now();
-    let quiet = args.quiet;
-    let say = |msg: String| {
-        if !quiet {
-            eprintln!("triax: {msg}");
-        }
+    let report = if args.quiet {
+        cli::Progress::quiet("triax")
+    } else {
+        cli::Progress::new("triax")
     };
+    let say = |msg: String| report.say(&msg);
     // Written from the pool's thread as the test goes: a handle that is `Send`.
     let mut out = std::io::BufWriter::with_capacity(1 << 20, std::io::stdout());
-    let (mut test, mut series, mut start) = match read_input()? {
+    let (mut test, mut series, mut start, frames) = match read_input()? {
         Input::Specimen(world) => {
             let mut test = Triax::new(world, params_of(&args)).map_err(flagged)?;
             let (nodes, triangles, node_mass) = match (
@@ -509,8 +532,8 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 test.world.dt,
                 test.params.pressure
             ));
-            consolidate(&mut test, args.checkpoint_every, &mut out, &say)?;
-            (test, Vec::new(), None)
+            consolidate(&mut test, args.checkpoint_every, &mut out, &report)?;
+            (test, Vec::new(), None, Vec::new())
         }
         Input::Resume {
             params,
@@ -518,6 +541,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
             progress,
             series,
             start,
+            frames,
         } => {
             if !["consolidation", "loading"].contains(&progress.phase.as_str()) {
                 bail!(
@@ -540,7 +564,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                     "resuming consolidation at its step {} with the stream's settings",
                     test.world.step - test.progress.start_step
                 ));
-                consolidate(&mut test, args.checkpoint_every, &mut out, &say)?;
+                consolidate(&mut test, args.checkpoint_every, &mut out, &report)?;
             } else {
                 say(format!(
                     "resuming at step {} (axial strain {:.4}) with the stream's settings",
@@ -548,17 +572,23 @@ fn run(args: Cli) -> anyhow::Result<()> {
                     (test.progress.height0 / test.measure().height).ln()
                 ));
             }
-            (test, series, start)
+            (test, series, start, frames)
         }
     };
     let mut snapshots = match &args.vtk {
         Some(dir) => {
-            Some(Snapshots::new(dir).with_context(|| format!("creating {}", dir.display()))?)
+            // A resumed run numbers its snapshots on from the stream's frames.
+            Some(
+                Snapshots::continuing(dir, &frames)
+                    .with_context(|| format!("creating {}", dir.display()))?,
+            )
         }
         None => None,
     };
     let loading_clock = std::time::Instant::now();
     let first_step = test.world.step;
+    let (rate, dt, final_strain) = (test.params.rate, test.world.dt, test.params.final_strain);
+    let end = args.stop_at.map_or(final_strain, |s| s.min(final_strain));
     let mut failure: Option<anyhow::Error> = None;
     let mut sink = |e: Event| {
         if failure.is_some() {
@@ -572,14 +602,6 @@ fn run(args: Cli) -> anyhow::Result<()> {
                         measure: m,
                     };
                     writeln!(out, "{}", serde_json::to_string(&record)?)?;
-                    if !quiet {
-                        let rate = (test_steps(m.step, first_step)) as f64
-                            / loading_clock.elapsed().as_secs_f64().max(1e-9);
-                        eprintln!(
-                            "triax: axial strain {:.4}: q {:.4e} Pa, volumetric strain {:.4e}, {:.0} steps/s",
-                            m.axial_strain, m.q_boundary, m.volumetric_strain, rate
-                        );
-                    }
                     series.push(m.clone());
                 }
                 Event::Frame(w, progress) => {
@@ -592,6 +614,22 @@ fn run(args: Cli) -> anyhow::Result<()> {
                         s.write(w).context("writing a VTK snapshot")?;
                     }
                 }
+                Event::Loading(step, strain) => report.status(|| {
+                    let speed = per_second(test_steps(step, first_step), loading_clock);
+                    // The strain rate is constant past the ramp: the steps left follow.
+                    let left = (end - strain).max(0.0) / (rate * dt) / speed.max(1e-9);
+                    let q = series.last().map_or(String::new(), |m| {
+                        format!(
+                            ": q {:.4e} Pa, volumetric strain {:.4e}",
+                            m.q_boundary, m.volumetric_strain
+                        )
+                    });
+                    format!(
+                        "axial strain {strain:.4} of {end} ({:.0} %){q}, {speed:.0} steps/s, about {} left",
+                        100.0 * strain / end,
+                        cli::duration(left)
+                    )
+                }),
                 Event::Consolidating(..) | Event::Checkpoint(..) => {}
             }
             Ok(())
@@ -605,6 +643,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
     } else {
         test.load(args.stop_at, &mut sink)?;
     }
+    report.finish();
     if let Some(e) = failure {
         return Err(e);
     }

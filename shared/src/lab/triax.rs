@@ -390,7 +390,13 @@ pub enum Event<'a> {
     Measure(&'a Measure),
     /// A frame: the world and the progress to resume from.
     Frame(&'a World, &'a Progress),
+    /// Loading's progress, every [`LOADING_REPORT`] steps: the step and the axial strain.
+    Loading(u64, f64),
 }
+
+/// Steps of loading between [`Event::Loading`] reports (cheap: the platens' gap, no
+/// measurement).
+pub const LOADING_REPORT: u64 = 100;
 
 impl Triax {
     /// The test on a pack specimen: the cylinder swapped for the membrane, inertia scaled, the
@@ -862,6 +868,9 @@ impl Triax {
             }
             if finished {
                 return Ok(());
+            }
+            if self.world.step % LOADING_REPORT == 0 {
+                sink(Event::Loading(self.world.step, strain));
             }
             let elapsed = (self.world.step - self.progress.start_step) as f64 * self.world.dt;
             let v = self.params.rate * (zt - zb) * self.params.speed_up(elapsed);

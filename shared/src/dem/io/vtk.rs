@@ -224,6 +224,14 @@ impl Snapshots {
         })
     }
 
+    /// Snapshots into `dir` that go on from a run's `earlier` ones (their times, in order):
+    /// the next is numbered after them, and the collections list them all.
+    pub fn continuing(dir: &Path, earlier: &[f64]) -> std::io::Result<Snapshots> {
+        let mut s = Snapshots::new(dir)?;
+        s.entries = earlier.iter().copied().zip(0..).collect();
+        Ok(s)
+    }
+
     /// Writes the particles, contacts and walls of the world now.
     pub fn write(&mut self, world: &World) -> std::io::Result<()> {
         let k = self.entries.len();
