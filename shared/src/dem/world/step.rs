@@ -422,7 +422,7 @@ impl World {
         let contacts = &self.contacts;
         let chunk = |pairs: &[(u32, u32)], slots: &mut [Option<Gap>], limits: &mut [Travel]| {
             let owner = Buffers::slot(threads);
-            let (mut touches, mut touching, mut part) = buffers_ref.take(owner);
+            let (mut touches, mut touching, mut terms, mut part) = buffers_ref.take(owner);
             // Room for every pair: growing the list by doubling (realloc copies of 200-byte
             // items) was 6 % of a step's instructions on the 2000 I_P bed.
             touches.reserve(pairs.len());
@@ -434,12 +434,11 @@ impl World {
             // The touching pairs again, compact, for the force rows (read from the touches
             // themselves, a cache line each, often in the other core's cache, they took 2.5x
             // as long on 2 threads as on one).
-            // The energy sums too, while each touch is in this core's cache (summed over the
-            // list afterwards, the touches made by the other core took 2.4x as long to read).
-            let mut sums = Sums::default();
+            // The energy sums' terms too, while each touch is in this core's cache (read from
+            // the touches afterwards, those made by the other core took 2.4x as long).
             for ((pair, slot), limit) in pairs.iter().zip(slots).zip(limits) {
                 if let Some((key, contact, t)) = narrow(pair, &mut at, (slot, limit)) {
-                    sums.add(&contact, &t, &self.material);
+                    terms.push(Sums::terms(&contact, &t, &self.material));
                     part.push(key, contact);
                     touches.push(t);
                     touching.push(*pair);
@@ -450,7 +449,7 @@ impl World {
                 touching,
                 part,
                 owner,
-                sums,
+                terms,
             }
         };
         let this = self;
@@ -693,10 +692,12 @@ impl World {
                 w.clear_forces();
             }
             let mut wall_work = 0.0;
-            // The chunks' sums in chunk order (fixed by the pairs, whatever the threads).
+            // The touches' terms one by one, in the touches' order: the sums do not depend on
+            // where the chunks begin, which follows the broad phase's kept list (not part of
+            // the state: a restart makes another), nor on the threads.
             let mut sums = Sums::default();
-            for c in chunks.iter() {
-                sums.merge(&c.sums);
+            for t in chunks.iter().flat_map(|c| &c.terms) {
+                sums.add_terms(t);
             }
             let wall_contacts = parts[pair_parts..].iter().flat_map(|p| p.values());
             for (((t, x), c), key) in wall_touches.iter().zip(wall_contacts).zip(&wall_keys) {
@@ -843,8 +844,8 @@ struct Chunk {
     /// The contacts, for the contact list (taken out before the step's end).
     part: Part,
     owner: usize,
-    /// The touches' sums: force magnitudes, elastic and slip energies.
-    sums: Sums,
+    /// Each touch's terms of the [`Sums`]: force magnitude, elastic and slip energies.
+    terms: Vec<[f64; 3]>,
 }
 
 /// Sums over touches, each added in the touches' order ([`Chunk::sums`]).
@@ -856,16 +857,19 @@ struct Sums {
 }
 
 impl Sums {
-    fn add(&mut self, c: &Contact, t: &Touch, m: &Material) {
-        self.force += t.force.norm();
-        self.elastic += c.elastic_energy(m);
-        self.slip += t.slip_energy;
+    /// A touch's terms: its force's magnitude, elastic and slip energies.
+    fn terms(c: &Contact, t: &Touch, m: &Material) -> [f64; 3] {
+        [t.force.norm(), c.elastic_energy(m), t.slip_energy]
     }
 
-    fn merge(&mut self, other: &Sums) {
-        self.force += other.force;
-        self.elastic += other.elastic;
-        self.slip += other.slip;
+    fn add(&mut self, c: &Contact, t: &Touch, m: &Material) {
+        self.add_terms(&Sums::terms(c, t, m));
+    }
+
+    fn add_terms(&mut self, &[force, elastic, slip]: &[f64; 3]) {
+        self.force += force;
+        self.elastic += elastic;
+        self.slip += slip;
     }
 }
 
@@ -886,11 +890,12 @@ struct Pool {
     parts: Vec<Part>,
 }
 
-/// A chunk's touches and touching pairs.
-type TouchBuffers = (Vec<Touch>, Vec<(u32, u32)>);
+/// A chunk's touches, touching pairs and their sums' terms.
+type TouchBuffers = (Vec<Touch>, Vec<(u32, u32)>, Vec<[f64; 3]>);
 
-/// A chunk's three buffers: its touches, its touching pairs and its part of the contact list.
-type ChunkBuffers = (Vec<Touch>, Vec<(u32, u32)>, Part);
+/// A chunk's four buffers: its touches, its touching pairs, their terms and its part of the
+/// contact list.
+type ChunkBuffers = (Vec<Touch>, Vec<(u32, u32)>, Vec<[f64; 3]>, Part);
 
 impl Buffers {
     /// This thread's slot: its index in the pool of `threads`, or `threads` outside it.
@@ -901,9 +906,9 @@ impl Buffers {
     /// An empty pair of buffers for this thread's next chunk (see [`Buffers::give_back`]).
     fn take(&self, slot: usize) -> ChunkBuffers {
         let mut pool = self.0[slot].lock().unwrap_or_else(|e| e.into_inner());
-        let (touches, touching) = pool.touches.pop().unwrap_or_default();
+        let (touches, touching, terms) = pool.touches.pop().unwrap_or_default();
         let part = pool.parts.pop().unwrap_or_default();
-        (touches, touching, part)
+        (touches, touching, terms, part)
     }
 
     /// An empty part of the contact list for this thread (the walls' contacts).
@@ -923,8 +928,9 @@ impl Buffers {
             // their drop read them back from memory: the 500 bed took 1.05-1.12x as long).
             c.touches.clear();
             c.touching.clear();
+            c.terms.clear();
             let pool = self.0[c.owner].get_mut().unwrap_or_else(|e| e.into_inner());
-            pool.touches.push((c.touches, c.touching));
+            pool.touches.push((c.touches, c.touching, c.terms));
         }
         for mut p in parts {
             p.clear();
