@@ -24,11 +24,11 @@ for bin in "$a" "$b"; do
 done
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-# Seconds of `dem`'s own timing line ("N steps of M bodies in T s"); the state it wrote is
+# Seconds of `dem`'s own timing line ("N steps of M bodies [on K threads] in T s"); the state it wrote is
 # left in $tmp/OUT.
 run() {
   RAYON_NUM_THREADS=$threads "$1" --renumber --steps "$steps" < "$bed" > "$tmp/$2" 2> "$tmp/err"
-  sed -n 's/^dem: .* steps of .* bodies in \([0-9.]*\) s.*/\1/p' "$tmp/err"
+  sed -n 's/^\(\[.*\] \)\{0,1\}dem: .* steps of .* bodies\( on [0-9]* threads\{0,1\}\)\{0,1\} in \([0-9.]*\) s.*/\3/p' "$tmp/err"
 }
 for k in $(seq "$pairs"); do
   if [ $((k % 2)) = 1 ]; then ta=$(run "$a" a.out); tb=$(run "$b" b.out); else tb=$(run "$b" b.out); ta=$(run "$a" a.out); fi

@@ -25,4 +25,4 @@ awk -v c0="$start" -v c1="$mid" -v c2="$end" -v s0="$step0" -v sc="$steps_c" \
   full = 0.15 / rate / dt;
   printf "bench-triax %s: consolidation %d steps in %.0f s; loading %d steps to %s in %.0f s (%.1f steps/s)\n", spec, sc, c, s1 - s0, strain, l, per;
   printf "bench-triax: projected test to 15 %% at %s /s: %.0f loading steps, %.0f min with the consolidation\n", rate, full, (c + full / per) / 60 }'
-grep "step time" "$tmp/loading.log" | sed 's/^triax:/bench-triax: loading/'
+grep "step time" "$tmp/loading.log" | sed 's/^.*triax:/bench-triax: loading/'

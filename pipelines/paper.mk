@@ -69,3 +69,11 @@ paper: $(PAPER)/all.csv $(PAPER)/summary.csv
 	plot --x level --y friction_angle,dilatancy_angle --stats --band minmax --size 1200x500 \
 	  --xlabel "abrasion level (0: I_P)" --ylabel "peak friction angle (deg)" --ylabel "dilatancy angle (deg)" \
 	  --title "Fig. 12 at the paper's scale" < $(PAPER)/summary.csv > $(PAPER)/fig12.png
+
+# For pipelines/slurm-submit.sh: the folder and the runs (one line each), and the groups'
+# templates, which every run's job shares and which are made before the jobs are submitted.
+paper-list:
+	@echo $(PAPER)
+	@echo $(PAPER_RUNS)
+paper-templates: $(foreach g,$(PAPER_GROUPS),$(OUT)/group-$(g).obj)
+.PHONY: paper-list paper-templates

@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 /// Runs a tool's body: prints an error once as `tool: message` (with its causes) and maps it to
 /// an exit code; a broken pipe ends quietly with success.
 pub fn run(tool: &str, body: impl FnOnce() -> anyhow::Result<()>) -> ExitCode {
+    threads_from_slurm();
     match body() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
@@ -27,6 +28,33 @@ pub fn run(tool: &str, body: impl FnOnce() -> anyhow::Result<()>) -> ExitCode {
             eprintln!("{msg}");
             ExitCode::from(1)
         }
+    }
+}
+
+/// In a Slurm job given `--cpus-per-task` (`SLURM_CPUS_PER_TASK`), the tools use that many
+/// threads unless `RAYON_NUM_THREADS` says otherwise (rayon alone would take every CPU the node
+/// shows).
+fn threads_from_slurm() {
+    if std::env::var_os("RAYON_NUM_THREADS").is_some() {
+        return;
+    }
+    let cpus = std::env::var("SLURM_CPUS_PER_TASK").ok();
+    if let Some(n) = cpus
+        .and_then(|c| c.trim().parse::<usize>().ok())
+        .filter(|&n| n > 0)
+    {
+        // Fails only if the pool was already made: it then keeps its threads.
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global();
+    }
+}
+
+/// `N threads` (or `1 thread`): the pool's, for a tool's first line.
+pub fn threads() -> String {
+    match rayon::current_num_threads() {
+        1 => "1 thread".into(),
+        n => format!("{n} threads"),
     }
 }
 

@@ -185,7 +185,7 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
     let dir = std::env::temp_dir().join(format!("pack-e2e-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let nine = fixture("templates_seed7.obj");
-    let runs: Vec<(Vec<u8>, serde_json::Value)> = std::thread::scope(|scope| {
+    let runs: Vec<(Vec<u8>, serde_json::Value, String)> = std::thread::scope(|scope| {
         let handles: Vec<_> = ["1", "2"]
             .map(|threads| {
                 let (dir, nine) = (&dir, &nine);
@@ -206,21 +206,27 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
                     if threads == "1" {
                         args.extend(["--vtk", vtk.to_str().unwrap()]);
                     }
-                    let out = run_env("pack", &args, nine, &[("RAYON_NUM_THREADS", threads)]);
+                    // Every progress status shown, each line tagged.
+                    let env = [
+                        ("RAYON_NUM_THREADS", threads),
+                        ("GRANULAR_TAG", "spec"),
+                        ("GRANULAR_PROGRESS_SECONDS", "0"),
+                    ];
+                    let out = run_env("pack", &args, nine, &env);
                     assert!(
                         out.status.success(),
                         "pack failed: {}",
                         String::from_utf8_lossy(&out.stderr)
                     );
                     let text = std::fs::read_to_string(&path).unwrap();
-                    (out.stdout, serde_json::from_str(&text).unwrap())
+                    let err = String::from_utf8_lossy(&out.stderr).to_string();
+                    (out.stdout, serde_json::from_str(&text).unwrap(), err)
                 })
             })
             .into();
         handles.into_iter().map(|h| h.join().unwrap()).collect()
     });
-    // A snapshot with every progress line (one each 20 000 steps from step 0) and one of the
-    // specimen.
+    // A snapshot every --every steps (20 000, from step 0) and one of the specimen.
     let pvd = std::fs::read_to_string(dir.join("vtk").join("particles.pvd")).unwrap();
     let snapshots = pvd.matches("<DataSet").count();
     std::fs::remove_dir_all(&dir).ok();
@@ -230,6 +236,19 @@ fn a_small_specimen_is_consolidated_isotropically_and_the_same_on_1_and_2_thread
     );
     let s = &runs[0].1;
     assert_eq!(field(s, "particles"), 36.0);
+    // The progress: tagged lines, the run of how many, its phase and speed; the threads.
+    let err = &runs[0].2;
+    assert!(err.lines().all(|l| l.starts_with("[spec] pack: ")), "{err}");
+    assert!(err.contains("on 1 thread\n"), "{err}");
+    for needle in [
+        "run 1 of 1 (specimen at friction 0.1000): compaction step 100: wall stresses",
+        "(ends below 1e-2)",
+        "equilibrium step",
+        "(ends below 1e-3)",
+        "steps/s",
+    ] {
+        assert!(err.contains(needle), "'{needle}' not in: {err}");
+    }
     let expected = field(s, "steps") as usize / 20000 + 2;
     assert_eq!(
         snapshots,

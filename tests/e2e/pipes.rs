@@ -146,6 +146,7 @@ fn abrade_streams_before_its_input_ends() {
 /// must end quietly with success.
 fn quiet_when_the_reader_goes(exe: &str, args: &[&str], input: Vec<u8>) {
     let mut child = Command::new(exe)
+        .env_remove("GRANULAR_PROGRESS_SECONDS")
         .args(args)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())

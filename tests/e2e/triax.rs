@@ -319,6 +319,51 @@ fn a_test_resumed_in_consolidation_equals_the_run_in_one_go_field_by_field() {
     assert!(joined == whole, "the bytes differ");
 }
 
+/// Progress as a log shows it (standard error not a terminal): every line starts with the
+/// tag the Makefile sets (GRANULAR_TAG), consolidation says its step, the unbalanced ratio and
+/// what it must fall below, loading its strain of the final one, q, steps a second and the time
+/// left; the first line says the threads, taken in a Slurm job from its CPUs. The stream is the
+/// same bytes as without progress.
+#[test]
+fn triax_shows_its_progress_tagged_and_takes_its_threads_from_slurm() {
+    let out = super::run_env_without(
+        "triax",
+        &SHORT,
+        specimen(),
+        &[
+            ("GRANULAR_TAG", "out/x.jsonl"),
+            ("GRANULAR_PROGRESS_SECONDS", "0"),
+            ("SLURM_CPUS_PER_TASK", "1"),
+        ],
+        &["RAYON_NUM_THREADS"],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(out.stdout == short_stream(), "progress changed the stream");
+    let lines: Vec<&str> = err.lines().collect();
+    assert!(
+        lines.iter().all(|l| l.starts_with("[out/x.jsonl] triax: ")),
+        "{err}"
+    );
+    assert!(lines[0].ends_with("on 1 thread"), "{}", lines[0]);
+    let consolidating = (lines.iter())
+        .find(|l| l.contains("consolidation step"))
+        .expect("a consolidation status");
+    assert!(
+        consolidating.contains("(ends below 1e-3)") && consolidating.contains("steps/s"),
+        "{consolidating}"
+    );
+    let loading = (lines.iter())
+        .find(|l| l.contains("axial strain") && l.contains("left"))
+        .expect("a loading status");
+    assert!(
+        loading.contains(" of 0.02 (")
+            && loading.contains(": q ")
+            && loading.contains("steps/s, about"),
+        "{loading}"
+    );
+}
+
 /// Bad input and options: a clear message, exit 1 (2 for bad usage), nothing written.
 #[test]
 fn triax_rejects_what_is_not_a_cylindrical_specimen_and_nonsense_options() {

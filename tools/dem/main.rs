@@ -449,8 +449,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
             })
             .sum();
         shared::note!(
-            "dem", "{steps} steps of {} bodies in {secs:.2} s ({:.3e} particle-steps/s), {} contacts at the end ({:.2} per particle)",
+            "dem", "{steps} steps of {} bodies on {} in {secs:.2} s ({:.3e} particle-steps/s), {} contacts at the end ({:.2} per particle)",
             world.bodies.len(),
+            cli::threads(),
             steps as f64 * world.bodies.len() as f64 / secs.max(1e-9),
             world.contacts.len(),
             ends as f64 / world.bodies.len() as f64

@@ -31,6 +31,9 @@ so the templates come in equal numbers. The specimen goes to standard output as 
 a box 2 to 5 the side planes at x-min, x-max, y-min, y-max. A summary
 (count, porosity, void ratio, coordination, wall stresses, unbalanced-force ratio, contact-normal
 anisotropy, largest overlap, wall-clock time) goes to standard error, and as JSON to --summary.
+Progress goes to standard error: which run of how many (the limits', the calibration's, the
+refinement's and the specimen's compactions), its phase, stresses and steps a second; on a
+terminal one line redrawn in place, in a log a line every 5 s (GRANULAR_PROGRESS_SECONDS).
 
 How (docs/models/pack.md): a loose cloud without contacts in the container enlarged to fit it, no
 gravity; the walls close in at one strain rate (a servo with integral action on the mean stress)
@@ -206,7 +209,7 @@ struct Cli {
     #[arg(long)]
     summary: Option<std::path::PathBuf>,
     /// Write VTK snapshots of the preparation (particles, contacts, walls as .vtu, and .pvd
-    /// collections for ParaView) into DIR: one with every progress line, and the specimen
+    /// collections for ParaView) into DIR: one every --every steps, and the specimen
     #[arg(long, value_name = "DIR")]
     vtk: Option<std::path::PathBuf>,
     /// Steps between VTK snapshots (--vtk); progress goes to standard error every few
@@ -503,11 +506,12 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let prep_dt = world.dt;
     let cloud = boundary::container(&world).context("the loose cloud has no container")?;
     runs.say(&format!(
-        "{} particles of {} templates in a loose cloud {}; time step {:.4e} s",
+        "{} particles of {} templates in a loose cloud {}; time step {:.4e} s; on {}",
         world.bodies.len(),
         world.shapes.len(),
         cloud.describe(),
-        world.dt
+        world.dt,
+        cli::threads()
     ));
     let mut snapshots = match &args.vtk {
         Some(dir) => Some(

@@ -30,8 +30,10 @@ platen, the top platen and the cylinder), or a stream this tool wrote, which it 
 its last frame. Standard output (JSON lines, docs/formats/triax-stream.md): the settings,
 checkpoints in consolidation, then a measurement every --every of axial strain and a frame (a
 complete dem state after a frame record) every --frame-every, at the start of loading and at
-the end. Progress goes to standard
-error unless --quiet.
+the end. Progress goes to standard error unless --quiet: on a terminal one line redrawn in
+place, in a log a line every 5 s (GRANULAR_PROGRESS_SECONDS), each line prefixed with
+[GRANULAR_TAG] when that is set. Threads: RAYON_NUM_THREADS, or in a Slurm job
+SLURM_CPUS_PER_TASK.
 
 The test (docs/models/triax.md): the cylinder becomes a membrane (--membrane-young,
 --membrane-poisson, --membrane-thickness; facets no larger than --membrane-edge, by default the
@@ -122,6 +124,7 @@ struct Cli {
     #[arg(long, value_name = "FILE")]
     csv: Option<std::path::PathBuf>,
     /// Write VTK snapshots (particles, contacts, walls with the membrane) at every frame into DIR
+    /// (a resumed run numbers its snapshots on from the stream's frames)
     #[arg(long, value_name = "DIR")]
     vtk: Option<std::path::PathBuf>,
     /// Write the bodies at the end as an OBJ stream to FILE, each coloured by its rotation
@@ -527,10 +530,11 @@ fn run(args: Cli) -> anyhow::Result<()> {
             };
             writeln!(out, "{}", serde_json::to_string(&settings)?)?;
             say(format!(
-                "{} particles; membrane of {nodes} nodes ({node_mass:.3e} kg each), {triangles} triangles; time step {:.4e} s; consolidating at {} Pa",
+                "{} particles; membrane of {nodes} nodes ({node_mass:.3e} kg each), {triangles} triangles; time step {:.4e} s; consolidating at {} Pa on {}",
                 test.world.bodies.len(),
                 test.world.dt,
-                test.params.pressure
+                test.params.pressure,
+                cli::threads()
             ));
             consolidate(&mut test, args.checkpoint_every, &mut out, &report)?;
             (test, Vec::new(), None, Vec::new())
@@ -561,15 +565,17 @@ fn run(args: Cli) -> anyhow::Result<()> {
             }
             if test.progress.phase == "consolidation" {
                 say(format!(
-                    "resuming consolidation at its step {} with the stream's settings",
-                    test.world.step - test.progress.start_step
+                    "resuming consolidation at its step {} with the stream's settings, on {}",
+                    test.world.step - test.progress.start_step,
+                    cli::threads()
                 ));
                 consolidate(&mut test, args.checkpoint_every, &mut out, &report)?;
             } else {
                 say(format!(
-                    "resuming at step {} (axial strain {:.4}) with the stream's settings",
+                    "resuming at step {} (axial strain {:.4}) with the stream's settings, on {}",
                     test.world.step,
-                    (test.progress.height0 / test.measure().height).ln()
+                    (test.progress.height0 / test.measure().height).ln(),
+                    cli::threads()
                 ));
             }
             (test, series, start, frames)
