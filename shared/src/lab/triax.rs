@@ -31,7 +31,7 @@ use crate::lab::boundary::{container, Section, WallGeometry, BOTTOM, SIDE, TOP};
 use crate::lab::inertia::scale_inertia;
 use crate::lab::servo::{servo, set_speeds, ServoLaw};
 use crate::math::{basis, Vec3};
-use crate::micro::stress::{contact_stress, coordination, invariants};
+use crate::micro::stress::{contact_stress, coordination, invariants, symmetric_components};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use thiserror::Error;
@@ -710,14 +710,7 @@ impl Triax {
             q_boundary: sigma1 - sigma3,
             p_boundary: (sigma1 + 2.0 * sigma3) / 3.0,
             ratio_boundary: 3.0 * (sigma1 - sigma3) / (sigma1 + 2.0 * sigma3),
-            stress: [
-                full[(0, 0)],
-                full[(1, 1)],
-                full[(2, 2)],
-                full[(0, 1)],
-                full[(0, 2)],
-                full[(1, 2)],
-            ],
+            stress: symmetric_components(&full),
             p,
             q,
             ratio: if p != 0.0 { q / p } else { 0.0 },

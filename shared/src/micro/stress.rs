@@ -35,6 +35,20 @@ pub fn contact_stress(w: &World, volume: f64) -> (Mat3, Mat3) {
     (full / volume, pairs / volume)
 }
 
+/// The six components of `sigma`'s symmetric part, `(sigma + sigma^T) / 2`: xx, yy, zz, xy,
+/// xz, yz (a stress record's; `sum f_i l_j` itself is not symmetric out of equilibrium).
+pub fn symmetric_components(sigma: &Mat3) -> [f64; 6] {
+    let s = (sigma + sigma.transpose()) * 0.5;
+    [
+        s[(0, 0)],
+        s[(1, 1)],
+        s[(2, 2)],
+        s[(0, 1)],
+        s[(0, 2)],
+        s[(1, 2)],
+    ]
+}
+
 /// The mean stress `p = sigma_ii / 3` and the deviatoric stress `q = sqrt(3/2 s_ij s_ij)`
 /// (Eq. 9) of `sigma`'s symmetric part.
 pub fn invariants(sigma: &Mat3) -> (f64, f64) {
@@ -100,6 +114,13 @@ pub fn sliding(w: &World) -> (usize, usize) {
 mod tests {
     use super::*;
     use crate::math::Vec3;
+
+    /// The off-diagonal terms are the means of the two triangles', not the upper one's.
+    #[test]
+    fn the_components_are_the_symmetric_part_s() {
+        let sigma = Mat3::new(1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0);
+        assert_eq!(symmetric_components(&sigma), [1.0, 5.0, 9.0, 3.0, 5.0, 7.0]);
+    }
 
     #[test]
     fn invariants_of_a_triaxial_state() {
