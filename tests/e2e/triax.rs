@@ -31,8 +31,9 @@ pub fn specimen() -> &'static [u8] {
     })
 }
 
-/// The options of the tests' short test: 2 % of axial strain, fast.
-const SHORT: [&str; 8] = [
+/// The options of the tests' short test: 2 % of axial strain, fast, with checkpoints in
+/// consolidation.
+const SHORT: [&str; 10] = [
     "--final-strain",
     "0.02",
     "--rate",
@@ -41,6 +42,8 @@ const SHORT: [&str; 8] = [
     "0.002",
     "--frame-every",
     "0.01",
+    "--checkpoint-every",
+    "2000",
 ];
 
 /// The short test's stream, run once.
@@ -87,8 +90,17 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
         .iter()
         .map(|m| m["q_boundary"].as_f64().unwrap())
         .collect();
-    assert!(q[0].abs() < 0.05 * 1e5, "q at the start {}", q[0]);
-    assert!(q.iter().skip(1).all(|q| *q > 1e4), "q under load {q:?}");
+    // At the start the platens hold the specimen's own vertical stress at the pressure (their
+    // q over the end rings' area, Eq. 20, is below it: the sleeve's sags, docs/models/triax.md).
+    let vertical = measures[0]["stress"][2].as_f64().unwrap();
+    assert!(
+        (vertical - 1e5).abs() < 0.02 * 1e5,
+        "vertical contact stress at the start {vertical}"
+    );
+    assert!(
+        q.iter().skip(1).all(|x| x - q[0] > 1e4),
+        "q under load {q:?}"
+    );
     for m in &measures {
         let p = m["p"].as_f64().unwrap();
         assert!(p > 5e4 && p < 3e5, "contact p {p}");
@@ -136,15 +148,17 @@ fn the_pipe_runs_a_short_test_and_its_frames_are_dem_states() {
         "{s}"
     );
     assert_eq!(s["steps"].as_u64(), Some(step(frames[2]) - start), "{s}");
-    // Checkpoints in consolidation every 20 000 of its steps, before it ended.
+    // Checkpoints in consolidation every 2 000 of its steps (--checkpoint-every), before it
+    // ended; it ends at the end of a block of 500 (--balance-window).
     let consolidation = first - start;
     assert!(
-        consolidation > 20_000,
+        consolidation > 2_000,
         "too short to checkpoint: {consolidation} steps"
     );
+    assert_eq!(consolidation % 500, 0, "{consolidation} steps");
     let at: Vec<u64> = checkpoints.iter().map(|r| step(r) - start).collect();
     let due: Vec<u64> = (1..)
-        .map(|k| k * 20_000)
+        .map(|k| k * 2_000)
         .take_while(|&k| k < consolidation)
         .collect();
     assert_eq!(
@@ -244,7 +258,8 @@ fn a_resumed_test_and_any_thread_count_give_the_same_bytes() {
         })
         .expect("a checkpoint in consolidation");
     let mut cut = (lines[..=at + count].join("\n") + "\n").into_bytes();
-    let rest = ok("triax", &[], &cut);
+    // The checkpoints' spacing is an option, not a setting of the stream: given again.
+    let rest = ok("triax", &["--checkpoint-every", "2000"], &cut);
     cut.extend(&rest);
     assert!(
         cut == whole,
@@ -350,7 +365,7 @@ fn triax_shows_its_progress_tagged_and_takes_its_threads_from_slurm() {
         .find(|l| l.contains("consolidation step"))
         .expect("a consolidation status");
     assert!(
-        consolidating.contains("(ends below 1e-3)") && consolidating.contains("steps/s"),
+        consolidating.contains("(ends below 2e-3)") && consolidating.contains("steps/s"),
         "{consolidating}"
     );
     let loading = (lines.iter())

@@ -7,7 +7,7 @@ use shared::dem::io::state::{self, Item, StateStream};
 use shared::dem::io::vtk::Snapshots;
 use shared::dem::world::World;
 use shared::lab::triax::{
-    self, Event, Measure, Params, Progress, Triax, TriaxError, OPENING, RAMP,
+    self, Event, Measure, Params, Progress, Triax, TriaxError, BALANCE_WINDOW, OPENING, RAMP,
 };
 use std::io::{BufRead, Write};
 use std::process::ExitCode;
@@ -102,14 +102,23 @@ struct Cli {
     /// Consolidation ends with both platens within this relative tolerance of --pressure
     #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
     tolerance: f64,
-    /// ... and the unbalanced-force ratio below this
-    #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
+    /// ... and the unbalanced-force ratio of the load-bearing bodies (two contacts or more),
+    /// averaged over --balance-window steps, below this
+    #[arg(long, default_value_t = 2e-3, allow_negative_numbers = true)]
     unbalanced: f64,
+    /// Steps over which consolidation's unbalanced ratio is averaged (each block's mean checked
+    /// at its end, with the platens)
+    #[arg(long, default_value_t = BALANCE_WINDOW)]
+    balance_window: u64,
+    /// The particles' local damping during consolidation [default: the specimen's own]
+    #[arg(long, allow_negative_numbers = true)]
+    consolidation_damping: Option<f64>,
     /// The most steps consolidation may take
     #[arg(long, default_value_t = 2_000_000)]
     max_steps: u64,
-    /// During consolidation, a frame every this many steps (0: none), from which a run
-    /// stopped in consolidation resumes (cut the stream after that frame's state)
+    /// During consolidation, a frame every this many steps (0: none; a multiple of
+    /// --balance-window), from which a run stopped in consolidation resumes (cut the stream
+    /// after that frame's state)
     #[arg(long, default_value_t = 20_000)]
     checkpoint_every: u64,
     /// End the run at the first frame at or past this axial strain (resume it later from
@@ -215,11 +224,12 @@ fn consolidate(
     let (clock, first) = (std::time::Instant::now(), test.world.step);
     // Steps of consolidation before this run (resumed from a checkpoint).
     let (target, before) = (test.params.unbalanced, first - test.progress.start_step);
+    let window = test.params.balance_window;
     let mut report = |e: Event| {
         match e {
         Event::Consolidating(step, s, u) => progress.status(|| {
             format!(
-                "consolidation step {step}: platens {:.4e} {:.4e} Pa, unbalanced {u:.3e} (ends below {target:.0e}), {:.0} steps/s",
+                "consolidation step {step}: platens {:.4e} {:.4e} Pa, unbalanced {u:.3e} over the last {window} steps (ends below {target:.0e}), {:.0} steps/s",
                 s[0],
                 s[1],
                 per_second(step - before, clock),
@@ -283,6 +293,8 @@ fn params_of(args: &Cli) -> Params {
         safety: args.safety,
         tolerance: args.tolerance,
         unbalanced: args.unbalanced,
+        balance_window: args.balance_window,
+        consolidation_damping: args.consolidation_damping,
         max_steps: args.max_steps,
         ..Params::default()
     }

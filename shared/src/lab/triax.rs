@@ -6,9 +6,11 @@
 //!    particle's size), just outside the cylinder's facets (its chords on the cylinder's
 //!    circle, so no particle overlaps it), its end rings sealed to the platens, the
 //!    confining pressure on its outer side.
-//! 2. **Consolidation.** The platens follow PFC's servo to the same pressure while the membrane
-//!    holds it on the side, until both platens are within `tolerance` of it and the
-//!    unbalanced-force ratio is below `unbalanced`: isotropic consolidation on the membrane.
+//! 2. **Consolidation.** The platens follow PFC's servo (without a rest band) so that the
+//!    specimen's own vertical stress is the pressure the membrane holds on the side
+//!    ([`Triax::held_stresses`]), until, at the end of a block of `balance_window` steps, both
+//!    are within `tolerance` of it and the block's mean unbalanced-force ratio of the
+//!    load-bearing bodies is below `unbalanced`: isotropic consolidation on the membrane.
 //! 3. **Loading.** The platens approach each other at a constant logarithmic strain rate
 //!    (each at half the speed `rate x H`), the confining pressure held on the membrane, until
 //!    the axial strain `ln(H0 / H)` reaches `final_strain`. A measurement ([`Measure`]) every
@@ -41,6 +43,12 @@ use thiserror::Error;
 pub const RAMP: f64 = 2e-3;
 /// The default [`Params::opening`]: the first measurement after the start at 1/32 of `every`.
 pub const OPENING: u32 = 5;
+/// The default [`Params::balance_window`], steps.
+pub const BALANCE_WINDOW: u64 = 500;
+
+fn default_balance_window() -> u64 {
+    BALANCE_WINDOW
+}
 
 /// How to run the test (SI units). Defaults: the paper's.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -86,6 +94,15 @@ pub struct Params {
     /// the unbalanced-force ratio below `unbalanced`.
     pub tolerance: f64,
     pub unbalanced: f64,
+    /// Consolidation's balance is judged on blocks of this many steps: the unbalanced-force
+    /// ratio of the load-bearing bodies ([`Triax::core_unbalanced`]) averaged over the block,
+    /// and the platens at its end.
+    #[serde(default = "default_balance_window")]
+    pub balance_window: u64,
+    /// The particles' local damping during consolidation (`None`: the specimen's own, which
+    /// loading keeps).
+    #[serde(default)]
+    pub consolidation_damping: Option<f64>,
     /// The platens' servo during consolidation: gain and largest strain rate (1/s).
     pub gain: f64,
     pub max_strain_rate: f64,
@@ -112,7 +129,9 @@ impl Default for Params {
             inertia_scaling: true,
             safety: 0.2,
             tolerance: 0.02,
-            unbalanced: 1e-3,
+            unbalanced: 2e-3,
+            balance_window: BALANCE_WINDOW,
+            consolidation_damping: None,
             gain: 0.5,
             max_strain_rate: 4.0,
             max_steps: 2_000_000,
@@ -231,6 +250,17 @@ impl Params {
         if self.max_steps == 0 {
             return bad("max_steps", "must be at least 1".into());
         }
+        if self.balance_window == 0 {
+            return bad("balance_window", "must be at least 1 step".into());
+        }
+        if let Some(d) = self.consolidation_damping {
+            if !(0.0..1.0).contains(&d) {
+                return bad(
+                    "consolidation_damping",
+                    format!("must be in [0, 1), got {d}"),
+                );
+            }
+        }
         Ok(())
     }
 }
@@ -318,6 +348,10 @@ pub struct Progress {
     /// The steps consolidation took (absent in streams written before it was recorded).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub consolidation_steps: Option<u64>,
+    /// The specimen's own local damping, which loading restores, while consolidation runs at
+    /// [`Params::consolidation_damping`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping: Option<f64>,
 }
 
 /// What the test measures, every `every` of axial strain (SI units, compression positive).
@@ -382,7 +416,8 @@ pub struct Triax {
 
 /// What the test hands its caller as it goes.
 pub enum Event<'a> {
-    /// Consolidation's progress, every `every_steps`: step, platen stresses, unbalanced ratio.
+    /// Consolidation's progress, every `every_steps`: step, the platens' stresses on the
+    /// specimen's section, and the last whole block's unbalanced ratio (infinite before one).
     Consolidating(u64, [f64; 2], f64),
     /// A frame in consolidation, every `checkpoint` steps: the world and the progress to
     /// resume consolidation from.
@@ -510,6 +545,7 @@ impl Triax {
                 frames: 0,
                 start_step: world.step,
                 consolidation_steps: None,
+                damping: None,
             },
             world,
             params,
@@ -628,6 +664,36 @@ impl Triax {
         six / 6.0
     }
 
+    /// The section the specimen presents to the platens, `V / H`: less than the end rings'
+    /// area where the sleeve sags into the voids between the outer particles.
+    pub fn section(&self) -> f64 {
+        let [zb, zt] = self.platens();
+        self.volume() / (zt - zb)
+    }
+
+    /// The platens' stresses as consolidation holds them at the pressure, their contact
+    /// counts, and the area they are over: the area over which the platens' mean force is the
+    /// specimen's own vertical stress, `sigma_zz` of the contacts with their wall halves (Eq.
+    /// 8), so that holding them at the cell pressure holds that stress there. Over the end
+    /// rings' area (9 % larger than the section `V / H` once the sleeve sags into the voids)
+    /// the specimen was loaded axially before the test (q/p 0.16 from the contacts); over
+    /// `V / H`, 0.09, as the sleeve's sags also push on the particles along the axis. Before
+    /// the platens carry anything, the section.
+    fn held_stresses(&self) -> ([f64; 2], [usize; 2], f64) {
+        let (over_rings, counts) = self.platen_stresses();
+        let forces = [0, 1].map(|k| over_rings[k] * self.end_area(k));
+        let mean = 0.5 * (forces[0] + forces[1]);
+        let volume = self.volume();
+        let (full, _) = contact_stress(&self.world, volume);
+        let vertical = full[(2, 2)];
+        let area = if mean > 0.0 && vertical > 0.0 {
+            mean / vertical
+        } else {
+            self.section()
+        };
+        (forces.map(|f| f / area), counts, area)
+    }
+
     /// The platens' stresses (their normal force over the end area) and contact counts.
     fn platen_stresses(&self) -> ([f64; 2], [usize; 2]) {
         let mut counts = [0usize; 2];
@@ -726,7 +792,9 @@ impl Triax {
         }
     }
 
-    /// The platens' servo law: PFC's, to the pressure, each platen on its own.
+    /// The platens' servo law: PFC's, to the pressure, each platen on its own, without a rest
+    /// band (a platen that rested within the tolerance and started again at its edge sent a
+    /// jolt through the specimen each time: the unbalanced ratio rose tenfold).
     fn platen_law(&self) -> ServoLaw {
         let p = &self.params;
         ServoLaw {
@@ -735,18 +803,19 @@ impl Triax {
             max_strain_rate: p.max_strain_rate,
             loose_strain_rate: p.max_strain_rate,
             integral_steps: 0,
-            tolerance: p.tolerance,
+            tolerance: 0.0,
         }
     }
 
-    /// One step with the platens following their servo to the pressure.
+    /// One step with the platens following their servo to the pressure, their stresses as
+    /// [`Triax::held_stresses`] has them.
     fn servo_step(&mut self, law: &ServoLaw) {
-        let (stresses, counts) = self.platen_stresses();
+        let (stresses, counts, area) = self.held_stresses();
         let [zb, zt] = self.platens();
         let half = 0.5 * (zt - zb);
         let geometry: Vec<WallGeometry> = (0..2)
-            .map(|k| WallGeometry {
-                area: self.end_area(k),
+            .map(|_| WallGeometry {
+                area,
                 half,
                 weight: 0.5,
             })
@@ -756,13 +825,15 @@ impl Triax {
         self.world.step();
     }
 
-    /// Step 2: the platens servo to the pressure while the membrane holds it, until both are
-    /// within the tolerance and the specimen is in equilibrium; the platens then stop.
+    /// Step 2: the platens servo to the pressure on the specimen's section while the membrane
+    /// holds it, until the specimen is in equilibrium; the platens then stop. Balance is
+    /// judged on blocks of [`Params::balance_window`] steps: at a block's end, both platens
+    /// within the tolerance and the block's mean of [`Triax::core_unbalanced`] below
+    /// `unbalanced`. The particles' damping is [`Params::consolidation_damping`] meanwhile.
     /// `report` sees the progress every `every_steps`, and a frame to resume from every
-    /// `checkpoint` steps of consolidation (0: none). A test resumed from such a frame goes
-    /// on from it: steps count from consolidation's start, and the bytes are those of the run
-    /// in one go (a frame is made only at a step that did not end consolidation, and the
-    /// resumed run's first check, with no unbalanced ratio yet, does not end it either).
+    /// `checkpoint` steps of consolidation (0: none; at a block's end, where nothing of the
+    /// block is carried over). A test resumed from such a frame goes on from it: steps count
+    /// from consolidation's start, and the bytes are those of the run in one go.
     pub fn consolidate(
         &mut self,
         every_steps: u64,
@@ -775,18 +846,46 @@ impl Triax {
                 self.progress.phase
             )));
         }
+        if checkpoint % self.params.balance_window != 0 {
+            return Err(TriaxError::Param {
+                field: "checkpoint_every",
+                rule: format!(
+                    "must be a multiple of the balance window, {} steps, got {checkpoint}",
+                    self.params.balance_window
+                ),
+            });
+        }
+        if let Some(d) = self.params.consolidation_damping {
+            self.progress
+                .damping
+                .get_or_insert(self.world.material.damping);
+            self.world.material.damping = d;
+        }
         let law = self.platen_law();
+        let window = self.params.balance_window;
         let (start, resumed_at) = (self.progress.start_step, self.world.step);
+        // The block's sum so far, and the last whole block's mean (unknown at first).
+        let (mut block, mut ratio) = (0.0, f64::INFINITY);
         let outcome = on_pool(|| loop {
-            let (stresses, _) = self.platen_stresses();
-            let done = stresses.iter().all(|s| {
-                (s - self.params.pressure).abs() <= self.params.tolerance * self.params.pressure
-            }) && self.world.unbalanced < self.params.unbalanced;
             let steps = self.world.step - start;
-            if steps > 0 && steps % every_steps == 0 {
-                report(Event::Consolidating(steps, stresses, self.world.unbalanced));
+            let (stresses, _, _) = self.held_stresses();
+            let at_end = steps > 0 && steps % window == 0;
+            if at_end && self.world.step > resumed_at {
+                ratio = block / window as f64;
+                block = 0.0;
             }
-            if done && steps > 0 {
+            if steps > 0 && steps % every_steps == 0 {
+                report(Event::Consolidating(steps, stresses, ratio));
+            }
+            let near = |s: &f64| {
+                (s - self.params.pressure).abs() <= self.params.tolerance * self.params.pressure
+            };
+            // A resumed run starts at a block's end with no block behind it: it does not end.
+            if at_end
+                && self.world.step > resumed_at
+                && stresses.iter().all(near)
+                && ratio < self.params.unbalanced
+            {
                 return Ok(());
             }
             if steps >= self.params.max_steps {
@@ -794,16 +893,20 @@ impl Triax {
                     steps,
                     stresses,
                     target: self.params.pressure,
-                    unbalanced: self.world.unbalanced,
+                    unbalanced: ratio,
                 });
             }
             if checkpoint > 0 && steps % checkpoint == 0 && self.world.step > resumed_at {
                 report(Event::Checkpoint(&self.world, &self.progress));
             }
             self.servo_step(&law);
+            block += self.core_unbalanced();
         });
         set_speeds(&mut self.world, &[0.0, 0.0]);
         outcome?;
+        if let Some(d) = self.progress.damping {
+            self.world.material.damping = d;
+        }
         let [zb, zt] = self.platens();
         self.progress = Progress {
             phase: "loading".into(),
@@ -813,8 +916,43 @@ impl Triax {
             frames: 0,
             start_step: self.world.step,
             consolidation_steps: Some(self.world.step - start),
+            damping: None,
         };
         Ok(())
+    }
+
+    /// The unbalanced-force ratio of the load-bearing bodies: the mean magnitude of the net
+    /// contact force (and gravity) on the bodies with two contacts or more, over the mean
+    /// force of the particle pairs' contacts. Rattlers (no contact or one), which damping
+    /// does not hold still, and the membrane's many light contacts, which would dilute the
+    /// mean contact force, are left out; infinite with no particle pair.
+    pub fn core_unbalanced(&self) -> f64 {
+        let w = &self.world;
+        let mut net: Vec<(Vec3, u32)> =
+            (w.bodies.iter()).map(|b| (w.gravity * b.mass, 0)).collect();
+        let (mut pair_force, mut pairs) = (0.0, 0usize);
+        for (&(partner, b), c) in &w.contacts {
+            let f = c.normal * c.normal_force + c.shear;
+            net[b as usize].0 += f;
+            net[b as usize].1 += 1;
+            if let Partner::Body(a) = partner {
+                net[a as usize].0 -= f;
+                net[a as usize].1 += 1;
+                pair_force += f.norm();
+                pairs += 1;
+            }
+        }
+        let (mut sum, mut bearing) = (0.0, 0usize);
+        for (f, n) in &net {
+            if *n >= 2 {
+                sum += f.norm();
+                bearing += 1;
+            }
+        }
+        if pairs == 0 || bearing == 0 || !(pair_force > 0.0) {
+            return f64::INFINITY;
+        }
+        (sum / bearing as f64) / (pair_force / pairs as f64)
     }
 
     /// `steps` steps of the consolidation's hold: the platens on their servo to the pressure,
