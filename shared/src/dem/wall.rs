@@ -29,12 +29,13 @@
 
 use crate::dem::collision::broad::overlap as overlap_boxes;
 use crate::dem::collision::gjk::{separating_gap, Hints, Points};
+use crate::dem::collision::kept::{join, pose_of, pose_words, split, POSE_WORDS};
 use crate::dem::collision::overlap::{
-    overlap_behind_facet, overlap_half_space_kept, overlap_half_space_within, overlap_parts,
-    reach_along, Beyond, Overlap, WallFound,
+    faces_near_facet, overlap_behind_facet, overlap_behind_facet_faces, overlap_half_space_kept,
+    overlap_half_space_within, overlap_parts, reach_along, Beyond, Overlap, WallFound,
 };
 use crate::dem::membrane::Membrane;
-use crate::dem::shape::{Posed, Shape};
+use crate::dem::shape::{motion_bound, Posed, Shape};
 use crate::math::{basis, box_excess, Vec3};
 use nalgebra::UnitQuaternion;
 use std::sync::OnceLock;
@@ -232,12 +233,20 @@ const PRISM_GJK_MIN: usize = 100;
 
 /// True when body `b` (a posed `s`), which reaches `behind` (> 0) behind the plane of triangle
 /// `q` (unit normal `n`, the solid side behind), is shown apart from the prism cut as deep as
-/// that by a gap that GJK certifies (exact supports, see [`separating_gap`]). Then the body's
+/// that by a gap of more than `margin` that GJK certifies (exact supports, see
+/// [`separating_gap`]). Then the body's
 /// overlap with the prism is empty. A body reaching behind the plane within each side plane
 /// alone may still miss the prism: its part behind a facet that a wrapping membrane tilts lies
 /// beside the facet, and finding that out by clipping costs a walk over every face behind the
 /// plane.
-fn apart_from_prism(s: &Shape, b: &Posed, q: &[Vec3; 3], n: &Vec3, behind: f64) -> bool {
+fn apart_from_prism(
+    s: &Shape,
+    b: &Posed,
+    q: &[Vec3; 3],
+    n: &Vec3,
+    behind: f64,
+    margin: f64,
+) -> bool {
     // Twice as deep as b reaches: the prism holds all of b's part behind the plane whatever the round-off.
     let down = -n * (2.0 * behind);
     let prism = [q[0], q[1], q[2], q[0] + down, q[1] + down, q[2] + down];
@@ -248,7 +257,109 @@ fn apart_from_prism(s: &Shape, b: &Posed, q: &[Vec3; 3], n: &Vec3, behind: f64) 
         posed: None,
     };
     let mut hints: Hints = [None, None];
-    separating_gap(a, Points::posed(s, b), &(b.pos - centre), 0.0, &mut hints).is_some()
+    separating_gap(
+        a,
+        Points::posed(s, b),
+        &(b.pos - centre),
+        margin,
+        &mut hints,
+    )
+    .is_some()
+}
+
+/// How far a body's [`FacetSet`] reaches in front of and beside each triangle, as a fraction
+/// of the body's bounding radius: the set holds while the body and the triangles' nodes have
+/// moved less than that (the nodes' moves weighted by how far they tilt the planes).
+const FACET_BAND_REL: f64 = 0.02;
+
+/// Words of a facet set before its lists: the body's pose ([`pose_words`]), the band and the
+/// tilt factor (2 words each), then the counts of tracked triangles, tracked nodes and listed
+/// triangles.
+const FACET_SET_HEAD: usize = POSE_WORDS + 4 + 3;
+
+/// A body's **facet set** against a facet wall, kept from one step to the next as the walls'
+/// other kept sets are (in the contact list, not in the state): the triangles near the body
+/// when it was made (those the wall's [`FacetGrid`] finds for its box grown by the band,
+/// ascending), their nodes where they were, and for each triangle the body may reach within
+/// the band ([`faces_near_facet`]: the body's faces within the band in front of the plane or
+/// behind it, and not beyond a side plane by more than the band) the list of those faces.
+/// While it holds ([`FacetSet::holds`]) a body's pieces come from the listed faces alone:
+/// the rejects (a climb to the plane, three to the side planes, GJK against the prism) and
+/// the walks over the faces behind each plane are left out, and each listed face is clipped
+/// as the walk clips it, so the pieces are the walk's, whether the set is kept or new.
+/// Words: [`FACET_SET_HEAD`], the tracked triangles, each tracked node (its index and x, y,
+/// z in 2 words each), each listed triangle (its index, its face count, its faces).
+#[derive(Clone, Copy)]
+struct FacetSet<'a>(&'a [u32]);
+
+impl FacetSet<'_> {
+    fn number(&self, k: usize) -> f64 {
+        join(&self.0[POSE_WORDS + 2 * k..])
+    }
+
+    fn counts(&self) -> (usize, usize, usize) {
+        let c = |k: usize| self.0[FACET_SET_HEAD - 3 + k] as usize;
+        (c(0), c(1), c(2))
+    }
+
+    fn tracked(&self) -> &[u32] {
+        &self.0[FACET_SET_HEAD..FACET_SET_HEAD + self.counts().0]
+    }
+
+    /// The tracked nodes: index and position when the set was made.
+    fn nodes(&self) -> impl Iterator<Item = (usize, Vec3)> + '_ {
+        let start = FACET_SET_HEAD + self.counts().0;
+        (0..self.counts().1).map(move |j| {
+            let w = &self.0[start + 7 * j..];
+            let x = |k: usize| join(&w[1 + 2 * k..]);
+            (w[0] as usize, Vec3::new(x(0), x(1), x(2)))
+        })
+    }
+
+    /// The listed triangles, ascending, each with its faces.
+    fn listed(&self) -> impl Iterator<Item = (u32, &[u32])> + '_ {
+        let (tracked, nodes, listed) = self.counts();
+        let mut at = FACET_SET_HEAD + tracked + 7 * nodes;
+        (0..listed).map(move |_| {
+            let (k, count) = (self.0[at], self.0[at + 1] as usize);
+            let faces = &self.0[at + 2..at + 2 + count];
+            at += 2 + count;
+            (k, faces)
+        })
+    }
+
+    /// True when the set still holds for body `b` (bounding radius `radius`) against `wall`,
+    /// `near` the triangles the wall's grid finds near the body's box now: the same scale,
+    /// those triangles all tracked, and the body's motion since ([`motion_bound`]) plus the
+    /// tilt factor times the farthest a tracked node has moved less than the band (by a
+    /// thousandth of it, far above the round-off). Then no face outside a list, nor any
+    /// triangle unlisted, can reach a triangle's prism: the listed faces hold every piece.
+    fn holds(&self, wall: &Wall, b: &Posed, radius: f64, near: &[u32]) -> bool {
+        let WallKind::Facets { nodes, .. } = &wall.kind else {
+            return false;
+        };
+        if self.0.len() < FACET_SET_HEAD {
+            return false;
+        }
+        let (pos, rot, scale) = pose_of(self.0);
+        if scale != b.scale {
+            return false;
+        }
+        let tracked = self.tracked();
+        if !near.iter().all(|k| tracked.binary_search(k).is_ok()) {
+            return false;
+        }
+        let (band, tilt) = (self.number(0), self.number(1));
+        let budget = 0.999 * band - motion_bound((&pos, &rot), (&b.pos, &b.orientation), radius);
+        let mut farthest = 0.0f64;
+        for (i, x) in self.nodes() {
+            let Some(now) = nodes.get(i) else {
+                return false;
+            };
+            farthest = farthest.max((now - x).norm());
+        }
+        tilt * farthest < budget
+    }
 }
 
 impl Wall {
@@ -338,79 +449,12 @@ impl Wall {
                 return Some((hit, found));
             }
             WallKind::Facets {
-                nodes,
-                triangles,
-                node_velocities,
-                ..
+                node_velocities, ..
             } => {
-                let mut pieces = Vec::new();
-                let misses =
-                    |lo: &Vec3, hi: &Vec3| (0..3).any(|k| lo[k] > b.hi[k] || b.lo[k] > hi[k]);
-                // How deep behind a facet the body is looked for: its width, or for a membrane
-                // (whose contacts are shallow) at most the sheet's reach.
-                let depth = self.prism_depth(radius);
-                let reach = Vec3::repeat(depth);
-                // The triangles whose prisms' boxes may meet the body's (all of them without a
-                // grid), ascending: a superset of those that pass the quick rejects below, so
-                // the same pieces in the same order.
-                let near = match grid {
-                    Some(g) => g.near(&b.lo, &b.hi),
-                    None => (0..triangles.len() as u32).collect(),
-                };
-                for t in near.iter().map(|&k| &triangles[k as usize]) {
-                    let q = t.map(|i| nodes[i as usize]);
-                    // Quick reject: the prism's box misses the body's box (first the triangle's
-                    // box grown by the prism's depth every way, then the prism's own).
-                    let lo = q[0].inf(&q[1]).inf(&q[2]);
-                    let hi = q[0].sup(&q[1]).sup(&q[2]);
-                    if misses(&(lo - reach), &(hi + reach)) {
-                        continue;
-                    }
-                    // A triangle of a deformed membrane folded flat has no plane: skipped.
-                    let n = (q[1] - q[0]).cross(&(q[2] - q[0]));
-                    let scale = (q[1] - q[0])
-                        .norm_squared()
-                        .max((q[2] - q[0]).norm_squared());
-                    if !(n.norm() > 1e-12 * scale) {
-                        continue;
-                    }
-                    let n = n.normalize();
-                    let back = -n * depth;
-                    if misses(&lo.inf(&(lo + back)), &hi.sup(&(hi + back))) {
-                        continue;
-                    }
-                    // Exact quick reject, first as the cheapest: all of B on the particles'
-                    // side of the facet's plane (one climb, where the side planes take three).
-                    let behind = reach_along(s, b, &-n) + n.dot(&q[0]);
-                    if behind <= 0.0 {
-                        continue;
-                    }
-                    // B's overlap with the triangle's prism, from B's faces behind its plane
-                    // (the prism is as deep as B is wide: a body that meets the plane reaches
-                    // no deeper).
-                    let sides = side_planes(&q, &n);
-                    // Quick reject: the body wholly beyond one of the prism's side planes (its
-                    // vertices, or for a large hull its box and then its lowest vertex, found
-                    // by a climb), so that every face's clipping would come out empty.
-                    let beyond = |(m, e): &(Vec3, f64)| match s.climb {
-                        None => (0..s.vertices.len()).all(|i| m.dot(&b.vertex(s, i)) > *e),
-                        Some(_) => {
-                            box_excess(&-m, -e, &b.lo, &b.hi) < 0.0 || -reach_along(s, b, &-m) > *e
-                        }
-                    };
-                    if sides.iter().any(beyond) {
-                        continue;
-                    }
-                    if s.vertices.len() >= PRISM_GJK_MIN && apart_from_prism(s, b, &q, &n, behind) {
-                        continue;
-                    }
-                    if let Some((v, c, cap)) = overlap_behind_facet(s, b, &n, n.dot(&q[0]), &sides)
-                    {
-                        pieces.push((*t, q, v, c, cap, n));
-                    }
-                }
+                let (pieces, found) = self.facet_pieces(s, b, radius, kept, grid);
                 if self.membrane.is_some() {
-                    return winkler(&pieces, node_velocities, &self.velocity);
+                    return winkler(&pieces, node_velocities, &self.velocity)
+                        .map(|(hit, _)| (hit, found));
                 }
                 // Spots: pieces on triangles that share a node, and so on; each spot's pieces
                 // summed in piece order (`labels[k]`: the label of `list[k]`'s pieces).
@@ -454,13 +498,14 @@ impl Wall {
                         node_weights.push((node, share * w));
                     }
                 }
-                Some(WallHit {
+                let hit = WallHit {
                     overlap,
                     velocity,
                     node_weights,
                     node_pushes: Vec::new(),
                     couple,
-                })
+                };
+                return Some((hit, found));
             }
             WallKind::Cylinder {
                 point,
@@ -610,6 +655,265 @@ impl Wall {
             }
         };
         hit.map(|h| (h, WallFound::None))
+    }
+
+    /// A facet wall's pieces for body `b` (a posed `s` of bounding radius `radius`): the
+    /// overlap of the body with each triangle's prism, ascending by triangle, from a **facet
+    /// set** kept from one step to the next ([`FacetSet`]), or made afresh when the last one
+    /// (`kept`) no longer holds; with it, what to keep. Without a grid (or with a triangle
+    /// folded flat near the body), every triangle is tested as [`Wall::pieces_walked`] does.
+    fn facet_pieces(
+        &self,
+        s: &Shape,
+        b: &Posed,
+        radius: f64,
+        kept: Option<&[u32]>,
+        grid: Option<&FacetGrid>,
+    ) -> (Vec<Piece>, WallFound) {
+        let Some(grid) = grid else {
+            return (self.pieces_walked(s, b, radius, None), WallFound::None);
+        };
+        let near = grid.near(&b.lo, &b.hi);
+        let kept = kept.filter(|w| FacetSet(w).holds(self, b, radius, &near));
+        let fresh = match kept {
+            Some(_) => None,
+            None => match self.facet_set(s, b, radius, grid) {
+                Some(w) => Some(w),
+                None => {
+                    return (
+                        self.pieces_walked(s, b, radius, Some(grid)),
+                        WallFound::None,
+                    )
+                }
+            },
+        };
+        let words = kept.or(fresh.as_deref()).expect("kept or made");
+        let pieces = self.set_pieces(s, b, radius, FacetSet(words));
+        (pieces, fresh.map_or(WallFound::Kept, WallFound::New))
+    }
+
+    /// A new facet set of body `b` ([`FacetSet`]), or `None` when a triangle near it is folded
+    /// flat (it has no plane to test against).
+    fn facet_set(&self, s: &Shape, b: &Posed, radius: f64, grid: &FacetGrid) -> Option<Vec<u32>> {
+        let WallKind::Facets {
+            nodes, triangles, ..
+        } = &self.kind
+        else {
+            return None;
+        };
+        let band = FACET_BAND_REL * radius;
+        let depth = self.prism_depth(radius);
+        let pad = Vec3::repeat(band);
+        let (blo, bhi) = (b.lo - pad, b.hi + pad);
+        let misses = |lo: &Vec3, hi: &Vec3| (0..3).any(|k| lo[k] > bhi[k] || blo[k] > hi[k]);
+        let reach = Vec3::repeat(depth + band);
+        let tracked = grid.near(&blo, &bhi);
+        let mut listed: Vec<(u32, Vec<u32>)> = Vec::new();
+        let mut altitude = f64::INFINITY;
+        for &k in &tracked {
+            let t = &triangles[k as usize];
+            let q = t.map(|i| nodes[i as usize]);
+            let n = (q[1] - q[0]).cross(&(q[2] - q[0]));
+            let longest = [(q[1] - q[0]), (q[2] - q[1]), (q[0] - q[2])]
+                .iter()
+                .map(|e| e.norm_squared())
+                .fold(0.0, f64::max);
+            let scale = (q[1] - q[0])
+                .norm_squared()
+                .max((q[2] - q[0]).norm_squared());
+            if !(n.norm() > 1e-12 * scale) {
+                return None;
+            }
+            altitude = altitude.min(n.norm() / longest.sqrt());
+            let lo = q[0].inf(&q[1]).inf(&q[2]);
+            let hi = q[0].sup(&q[1]).sup(&q[2]);
+            if misses(&(lo - reach), &(hi + reach)) {
+                continue;
+            }
+            let n = n.normalize();
+            let back = -n * (depth + band);
+            if misses(&(lo.inf(&(lo + back)) - pad), &(hi.sup(&(hi + back)) + pad)) {
+                continue;
+            }
+            let d = n.dot(&q[0]);
+            let behind = reach_along(s, b, &-n) + d;
+            if behind + band <= 0.0 {
+                continue;
+            }
+            let sides = side_planes(&q, &n);
+            let beyond = |(m, e): &(Vec3, f64)| match s.climb {
+                None => (0..s.vertices.len()).all(|i| m.dot(&b.vertex(s, i)) > e + band),
+                Some(_) => {
+                    box_excess(&-m, -(e + band), &b.lo, &b.hi) < 0.0
+                        || -reach_along(s, b, &-m) > e + band
+                }
+            };
+            if sides.iter().any(beyond) {
+                continue;
+            }
+            if s.vertices.len() >= PRISM_GJK_MIN
+                && apart_from_prism(s, b, &q, &n, behind + band, band)
+            {
+                continue;
+            }
+            if let Some(faces) = faces_near_facet(s, b, &n, d, &sides, band) {
+                if !faces.is_empty() {
+                    listed.push((k, faces));
+                }
+            }
+        }
+        let mut node_ids: Vec<u32> = (tracked.iter())
+            .flat_map(|&k| triangles[k as usize])
+            .collect();
+        node_ids.sort_unstable();
+        node_ids.dedup();
+        // How much a facet's plane and side planes move, at the points of the body that
+        // matter (within its width and the prism's depth of the triangle), for each unit its
+        // nodes move: tilting by up to twice the move over the triangle's altitude.
+        let tilt = 1.0 + 2.0 * (2.0 * radius + depth) / altitude;
+        let mut w: Vec<u32> = pose_words(&b.pos, &b.orientation, b.scale).collect();
+        w.extend([band, tilt].into_iter().flat_map(split));
+        w.extend([
+            tracked.len() as u32,
+            node_ids.len() as u32,
+            listed.len() as u32,
+        ]);
+        w.extend_from_slice(&tracked);
+        for &i in &node_ids {
+            let x = nodes[i as usize];
+            w.push(i);
+            w.extend([x.x, x.y, x.z].into_iter().flat_map(split));
+        }
+        for (k, faces) in &listed {
+            w.extend([*k, faces.len() as u32]);
+            w.extend_from_slice(faces);
+        }
+        Some(w)
+    }
+
+    /// The pieces of body `b` from the facet set `set`, which holds: each listed triangle's
+    /// overlap from its listed faces, ascending by triangle.
+    fn set_pieces(&self, s: &Shape, b: &Posed, radius: f64, set: FacetSet) -> Vec<Piece> {
+        let WallKind::Facets {
+            nodes, triangles, ..
+        } = &self.kind
+        else {
+            return Vec::new();
+        };
+        let mut pieces = Vec::new();
+        let misses = |lo: &Vec3, hi: &Vec3| (0..3).any(|k| lo[k] > b.hi[k] || b.lo[k] > hi[k]);
+        let depth = self.prism_depth(radius);
+        let reach = Vec3::repeat(depth);
+        for (k, faces) in set.listed() {
+            let t = &triangles[k as usize];
+            let q = t.map(|i| nodes[i as usize]);
+            // The walk's box rejects, as it makes them (the prism is `depth` deep), and no
+            // plane when folded flat; its exact rejects need no test: the faces show them.
+            let lo = q[0].inf(&q[1]).inf(&q[2]);
+            let hi = q[0].sup(&q[1]).sup(&q[2]);
+            if misses(&(lo - reach), &(hi + reach)) {
+                continue;
+            }
+            let n = (q[1] - q[0]).cross(&(q[2] - q[0]));
+            let scale = (q[1] - q[0])
+                .norm_squared()
+                .max((q[2] - q[0]).norm_squared());
+            if !(n.norm() > 1e-12 * scale) {
+                continue;
+            }
+            let n = n.normalize();
+            let back = -n * depth;
+            if misses(&lo.inf(&(lo + back)), &hi.sup(&(hi + back))) {
+                continue;
+            }
+            let sides = side_planes(&q, &n);
+            if let Some((v, c, cap)) =
+                overlap_behind_facet_faces(s, b, &n, n.dot(&q[0]), &sides, faces)
+            {
+                pieces.push((*t, q, v, c, cap, n));
+            }
+        }
+        pieces
+    }
+
+    /// Every piece of body `b` by testing each triangle near it (all of them without a grid):
+    /// quick rejects, then the walk over the body's faces behind the triangle's plane.
+    fn pieces_walked(
+        &self,
+        s: &Shape,
+        b: &Posed,
+        radius: f64,
+        grid: Option<&FacetGrid>,
+    ) -> Vec<Piece> {
+        let WallKind::Facets {
+            nodes, triangles, ..
+        } = &self.kind
+        else {
+            return Vec::new();
+        };
+        let mut pieces = Vec::new();
+        let misses = |lo: &Vec3, hi: &Vec3| (0..3).any(|k| lo[k] > b.hi[k] || b.lo[k] > hi[k]);
+        // How deep behind a facet the body is looked for: its width, or for a membrane
+        // (whose contacts are shallow) at most the sheet's reach.
+        let depth = self.prism_depth(radius);
+        let reach = Vec3::repeat(depth);
+        // The triangles whose prisms' boxes may meet the body's (all of them without a
+        // grid), ascending: a superset of those that pass the quick rejects below, so
+        // the same pieces in the same order.
+        let near = match grid {
+            Some(g) => g.near(&b.lo, &b.hi),
+            None => (0..triangles.len() as u32).collect(),
+        };
+        for t in near.iter().map(|&k| &triangles[k as usize]) {
+            let q = t.map(|i| nodes[i as usize]);
+            // Quick reject: the prism's box misses the body's box (first the triangle's
+            // box grown by the prism's depth every way, then the prism's own).
+            let lo = q[0].inf(&q[1]).inf(&q[2]);
+            let hi = q[0].sup(&q[1]).sup(&q[2]);
+            if misses(&(lo - reach), &(hi + reach)) {
+                continue;
+            }
+            // A triangle of a deformed membrane folded flat has no plane: skipped.
+            let n = (q[1] - q[0]).cross(&(q[2] - q[0]));
+            let scale = (q[1] - q[0])
+                .norm_squared()
+                .max((q[2] - q[0]).norm_squared());
+            if !(n.norm() > 1e-12 * scale) {
+                continue;
+            }
+            let n = n.normalize();
+            let back = -n * depth;
+            if misses(&lo.inf(&(lo + back)), &hi.sup(&(hi + back))) {
+                continue;
+            }
+            // Exact quick reject, first as the cheapest: all of B on the particles'
+            // side of the facet's plane (one climb, where the side planes take three).
+            let behind = reach_along(s, b, &-n) + n.dot(&q[0]);
+            if behind <= 0.0 {
+                continue;
+            }
+            // B's overlap with the triangle's prism, from B's faces behind its plane
+            // (the prism is as deep as B is wide: a body that meets the plane reaches
+            // no deeper).
+            let sides = side_planes(&q, &n);
+            // Quick reject: the body wholly beyond one of the prism's side planes (its
+            // vertices, or for a large hull its box and then its lowest vertex, found
+            // by a climb), so that every face's clipping would come out empty.
+            let beyond = |(m, e): &(Vec3, f64)| match s.climb {
+                None => (0..s.vertices.len()).all(|i| m.dot(&b.vertex(s, i)) > *e),
+                Some(_) => box_excess(&-m, -e, &b.lo, &b.hi) < 0.0 || -reach_along(s, b, &-m) > *e,
+            };
+            if sides.iter().any(beyond) {
+                continue;
+            }
+            if s.vertices.len() >= PRISM_GJK_MIN && apart_from_prism(s, b, &q, &n, behind, 0.0) {
+                continue;
+            }
+            if let Some((v, c, cap)) = overlap_behind_facet(s, b, &n, n.dot(&q[0]), &sides) {
+                pieces.push((*t, q, v, c, cap, n));
+            }
+        }
+        pieces
     }
 
     /// How deep behind its facets a body of bounding radius `radius` is looked for: its width,
@@ -1147,7 +1451,7 @@ mod tests {
             let behind = overlap_behind_facet(s, &b, &n, d, &sides);
             // The plane's and GJK's certificates that B misses the prism hold.
             let reach = reach_along(s, &b, &-n) + d;
-            if reach <= 0.0 || apart_from_prism(s, &b, &q, &n, reach) {
+            if reach <= 0.0 || apart_from_prism(s, &b, &q, &n, reach, 0.0) {
                 apart += 1;
                 assert!(
                     clipped.is_none_or(|(v, ..)| v < 1e-14 * crate::math::cube(radius)),
@@ -1225,6 +1529,257 @@ mod tests {
             }
         }
         Wall::facets(nodes, tris)
+    }
+
+    /// An Ab_3-like hull (a tangent-plane polyhedron subdivided three times, a climbing hull)
+    /// and a small one (the tangent-plane polyhedron itself), each with the scale that gives
+    /// it a bounding radius of 0.2 (a fifth of the tube's).
+    fn hulls() -> [(Shape, f64); 2] {
+        use crate::geometry::polygen::{generate, Params};
+        let params = Params {
+            faces: 9,
+            ..Default::default()
+        };
+        let mesh = generate(&params, 3, 0).unwrap().mesh;
+        let topo = mesh.topology(None).unwrap();
+        let large = crate::geometry::subdiv::subdivide(&mesh, &topo, 3);
+        let (a, b) = (
+            Shape::from_mesh(&large).unwrap(),
+            Shape::from_mesh(&mesh).unwrap(),
+        );
+        assert!(a.climb.is_some() && b.climb.is_none());
+        let (ra, rb) = (a.radius, b.radius);
+        [(a, 0.2 / ra), (b, 0.2 / rb)]
+    }
+
+    /// A tube of facets about the z axis, radius 1, from z = 0 to 2.4: 24 nodes a ring, 9
+    /// rings, the particles inside.
+    fn tube() -> Wall {
+        let (around, rings) = (24, 8);
+        let mut nodes = Vec::new();
+        for h in 0..=rings {
+            for a in 0..around {
+                let t = std::f64::consts::TAU * a as f64 / around as f64;
+                nodes.push(Vec3::new(t.cos(), t.sin(), h as f64 * 0.3));
+            }
+        }
+        let id = |a: usize, h: usize| (h * around + a % around) as u32;
+        let mut tris = Vec::new();
+        for h in 0..rings {
+            for a in 0..around {
+                tris.push([id(a, h), id(a, h + 1), id(a + 1, h + 1)]);
+                tris.push([id(a, h), id(a + 1, h + 1), id(a + 1, h)]);
+            }
+        }
+        Wall::facets(nodes, tris)
+    }
+
+    /// Follows body `s` (scaled by `scale`) through `steps` steps, posed by `pose(k)` against
+    /// `wall(k)`, touching it as the step does (with the facet set the last step kept), afresh
+    /// (a new set) and by the walk over every triangle (no grid): the three contacts agree to
+    /// the bit at every step. Returns how many steps kept the set, made a new one, touched.
+    fn follow(
+        s: &Shape,
+        scale: f64,
+        steps: usize,
+        wall: impl Fn(usize) -> Wall,
+        pose: impl Fn(usize) -> (Vec3, UnitQuaternion<f64>),
+    ) -> (usize, usize, usize) {
+        let r = s.radius * scale;
+        let mut kept: Option<Vec<u32>> = None;
+        let (mut kept_steps, mut new_steps, mut touching) = (0, 0, 0);
+        for k in 0..steps {
+            let w = wall(k);
+            let grid = FacetGrid::of(&w, r).expect("a facet wall has a grid");
+            let (at, turn) = pose(k);
+            let b = s.posed(&at, &turn, scale);
+            let with = w.touch_kept(s, &b, r, kept.as_deref(), Some(&grid));
+            let fresh = w.touch_kept(s, &b, r, None, Some(&grid));
+            let walked = w.touch_kept(s, &b, r, None, None);
+            for other in [&fresh, &walked] {
+                match (&with, other) {
+                    (None, None) => {}
+                    (Some((x, _)), Some((y, _))) => {
+                        assert_eq!(x.overlap, y.overlap, "step {k}");
+                        assert_eq!(x.node_weights, y.node_weights, "step {k}");
+                        assert_eq!(x.node_pushes, y.node_pushes, "step {k}");
+                        assert_eq!((x.velocity, x.couple), (y.velocity, y.couple), "step {k}");
+                    }
+                    _ => panic!(
+                        "step {k}: kept {}, other {}",
+                        with.is_some(),
+                        other.is_some()
+                    ),
+                }
+            }
+            // As the contact list keeps it: a new set replaces the last, a contact gone
+            // takes its set with it.
+            match with.map(|(_, found)| found) {
+                Some(WallFound::Kept) => kept_steps += 1,
+                Some(WallFound::New(w)) => {
+                    new_steps += 1;
+                    kept = Some(w);
+                }
+                Some(WallFound::None) => kept = None,
+                None => {
+                    kept = None;
+                    continue;
+                }
+            }
+            touching += 1;
+        }
+        (kept_steps, new_steps, touching)
+    }
+
+    /// Where to put body `s` (scaled, turned) so that it reaches `out` beyond the tube's
+    /// radius at angle `t` and height `z`: its farthest point outwards there (the tube's
+    /// polygon lies inside its circle, so the body overlaps the facets by about that much and
+    /// the polygon's sagitta, 0.9 % of the radius).
+    fn pressed(
+        s: &Shape,
+        scale: f64,
+        turn: &UnitQuaternion<f64>,
+        t: f64,
+        z: f64,
+        out: f64,
+    ) -> Vec3 {
+        let dir = Vec3::new(t.cos(), t.sin(), 0.0);
+        let reach = (s.vertices.iter())
+            .map(|v| dir.dot(&(turn * (v * scale))))
+            .fold(f64::NEG_INFINITY, f64::max);
+        dir * (1.0 + out - reach) + Vec3::z() * z
+    }
+
+    /// A named hard case: a body sliding along the sleeve across many facets (a sixteenth of
+    /// the circumference, four triangles, and a third of a ring up), pressed into it: kept
+    /// sets agree with new ones and with the walk at every step, and most steps keep theirs.
+    #[test]
+    fn a_body_sliding_along_the_sleeve_across_many_facets_keeps_the_walk_s_contact() {
+        for (s, scale) in hulls().iter().map(|(s, k)| (s, *k)) {
+            let turn = UnitQuaternion::from_euler_angles(0.3, 1.1, -0.4);
+            let (kept, new, touching) = follow(
+                s,
+                scale,
+                400,
+                |_| tube(),
+                |k| {
+                    let t = 0.2 + 0.4 * k as f64 / 400.0;
+                    (
+                        pressed(s, scale, &turn, t, 1.0 + 0.1 * k as f64 / 400.0, 0.0),
+                        turn,
+                    )
+                },
+            );
+            assert!(touching >= 390, "{touching} steps touching");
+            assert!(kept > new, "{kept} kept, {new} new");
+        }
+    }
+
+    /// A named hard case: a body turning in place against the sleeve, so that faces that
+    /// were not in its set come into a prism; the set is made anew before they do.
+    #[test]
+    fn a_body_turning_so_that_new_faces_enter_the_prism_keeps_the_walk_s_contact() {
+        for (s, scale) in hulls().iter().map(|(s, k)| (s, *k)) {
+            let first = UnitQuaternion::from_euler_angles(0.3, 1.1, -0.4);
+            let at = pressed(s, scale, &first, 0.7, 1.2, 0.0);
+            let (kept, new, touching) = follow(
+                s,
+                scale,
+                400,
+                |_| tube(),
+                |k| {
+                    // About an axis through the centre, across the sleeve's normal.
+                    let turn =
+                        UnitQuaternion::from_axis_angle(&Vec3::z_axis(), 0.6 * k as f64 / 400.0)
+                            * first;
+                    (at, turn)
+                },
+            );
+            assert!(touching >= 390, "{touching} steps touching");
+            assert!(kept > 0 && new > 1, "{kept} kept, {new} new");
+        }
+    }
+
+    /// A named hard case: the facets under a body stretched and tilted as the sleeve bulges
+    /// (the nodes near the body move out, by up to a tenth of the body's size, each a little
+    /// every step): kept sets agree with new ones and with the walk.
+    #[test]
+    fn facets_stretched_and_tilted_by_bulging_keep_the_walk_s_contact() {
+        for (s, scale) in hulls().iter().map(|(s, k)| (s, *k)) {
+            let r = s.radius * scale;
+            let turn = UnitQuaternion::from_euler_angles(0.3, 1.1, -0.4);
+            let at = pressed(s, scale, &turn, 0.7, 1.2, 0.0);
+            let bulge = move |k: usize| {
+                let mut w = tube();
+                if let WallKind::Facets { nodes, .. } = &mut w.kind {
+                    for x in nodes.iter_mut() {
+                        let near = (-(*x - at).norm_squared() / 0.05).exp();
+                        let out = Vec3::new(x.x, x.y, 0.0).normalize();
+                        *x += out * (0.1 * r * near * k as f64 / 300.0);
+                    }
+                }
+                w
+            };
+            let (kept, new, touching) = follow(s, scale, 300, bulge, |k| {
+                (
+                    at + Vec3::new(at.x, at.y, 0.0).normalize() * (0.05 * r * k as f64 / 300.0),
+                    turn,
+                )
+            });
+            assert!(touching >= 290, "{touching} steps touching");
+            assert!(kept > 0 && new > 1, "{kept} kept, {new} new");
+        }
+    }
+
+    /// A named hard case: a set made invalid by the nodes' motion alone (the body at rest):
+    /// the nodes near it jump by more than the band every 20 steps and creep between; each
+    /// jump makes a new set, and every step agrees with the walk.
+    #[test]
+    fn a_set_invalidated_by_the_nodes_motion_is_made_anew() {
+        for (s, scale) in hulls().iter().map(|(s, k)| (s, *k)) {
+            let r = s.radius * scale;
+            let turn = UnitQuaternion::from_euler_angles(0.3, 1.1, -0.4);
+            let at = pressed(s, scale, &turn, 0.7, 1.2, 0.0);
+            let moved = move |k: usize| {
+                let mut w = tube();
+                let shift = 0.05 * r * (k / 20) as f64 + 1e-5 * r * (k % 20) as f64;
+                if let WallKind::Facets { nodes, .. } = &mut w.kind {
+                    for x in nodes.iter_mut() {
+                        if (*x - at).norm() < 0.5 {
+                            *x += Vec3::new(x.x, x.y, 0.0).normalize() * -shift;
+                        }
+                    }
+                }
+                w
+            };
+            let (kept, new, touching) = follow(s, scale, 100, moved, |_| (at, turn));
+            assert_eq!(touching, 100);
+            assert!(new >= 5 && kept >= 50, "{kept} kept, {new} new");
+        }
+    }
+
+    /// A named hard case: a body at the seam where the sleeve meets a platen (the tube's end,
+    /// z = 0: the last ring of triangles, whose prisms end there), sliding along it half in,
+    /// half beyond the sleeve's end.
+    #[test]
+    fn a_body_at_the_seam_of_the_sleeve_and_a_platen_keeps_the_walk_s_contact() {
+        for (s, scale) in hulls().iter().map(|(s, k)| (s, *k)) {
+            let r = s.radius * scale;
+            let turn = UnitQuaternion::from_euler_angles(0.3, 1.1, -0.4);
+            let (kept, new, touching) = follow(
+                s,
+                scale,
+                300,
+                |_| tube(),
+                |k| {
+                    let t = 0.2 + 0.6 * k as f64 / 300.0;
+                    let z = 0.5 * r - 0.7 * r * k as f64 / 300.0;
+                    (pressed(s, scale, &turn, t, z, 0.0), turn)
+                },
+            );
+            assert!(touching >= 200, "{touching} steps touching");
+            assert!(kept > new, "{kept} kept, {new} new");
+        }
     }
 
     /// The grid the step uses changes no facet contact, to the bit, and rules out only bodies

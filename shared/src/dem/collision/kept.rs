@@ -811,7 +811,7 @@ fn f32_at_most(x: f64) -> f32 {
 }
 
 /// The two words of `x`.
-pub(super) fn split(x: f64) -> [u32; 2] {
+pub(crate) fn split(x: f64) -> [u32; 2] {
     split_bits(x.to_bits())
 }
 
@@ -821,11 +821,11 @@ fn split_bits(bits: u64) -> [u32; 2] {
 }
 
 /// Words of a [`pose_words`] pose: 8 numbers of 2 words.
-pub(super) const POSE_WORDS: usize = 16;
+pub(crate) const POSE_WORDS: usize = 16;
 
 /// Where a body is (centroid, orientation, scale), as [`POSE_WORDS`] words (a kept
 /// wall set's pose), read back by [`pose_of`].
-pub(super) fn pose_words(
+pub(crate) fn pose_words(
     pos: &Vec3,
     rot: &UnitQuaternion<f64>,
     scale: f64,
@@ -837,7 +837,7 @@ pub(super) fn pose_words(
 }
 
 /// The pose of the words [`pose_words`] gave.
-pub(super) fn pose_of(w: &[u32]) -> (Vec3, UnitQuaternion<f64>, f64) {
+pub(crate) fn pose_of(w: &[u32]) -> (Vec3, UnitQuaternion<f64>, f64) {
     let x = |k: usize| join(&w[2 * k..]);
     let q = nalgebra::Quaternion::new(x(6), x(3), x(4), x(5));
     (
@@ -930,7 +930,7 @@ fn travels(w: &[u32]) -> [Travel; 2] {
 }
 
 /// The number that [`split`] gave the words `w[0]`, `w[1]` of.
-pub(super) fn join(w: &[u32]) -> f64 {
+pub(crate) fn join(w: &[u32]) -> f64 {
     f64::from_bits(join_bits(w))
 }
 

@@ -925,11 +925,7 @@ pub fn overlap_behind_facet(
     if box_excess(&-n, -d, &b.lo, &b.hi) <= 0.0 {
         return None;
     }
-    // Sums about a point on the plane near the part (its first vertex moved onto the plane), so
-    // that each term is of the overlap's size: 6 V, 24 x the moment (as `Acc`), 2 x the
-    // projected area of the faces (minus the cap's).
-    let mut origin: Option<Vec3> = None;
-    let (mut volume6, mut moment24, mut area2) = (0.0, Vec3::zeros(), 0.0);
+    let mut sums = FacetSums::default();
     SCRATCH.with_borrow_mut(|sc| {
         let Scratch {
             clip: walk,
@@ -938,45 +934,156 @@ pub fn overlap_behind_facet(
             sides_clip,
             ..
         } = sc;
+        each_face_behind(walk, side_b, faces_b, sb, b, n, d, sides, |poly| {
+            sums.add(sides_clip, poly, n, d, sides);
+            true
+        });
+    });
+    sums.result(n)
+}
+
+/// [`overlap_behind_facet`] from a list of B's faces (ascending) that holds every face with
+/// a vertex behind the plane that is not wholly beyond a side plane (a facet set's,
+/// [`faces_near_facet`]): those faces, clipped alike in the same order, so the same bits.
+pub fn overlap_behind_facet_faces(
+    sb: &Shape,
+    b: &Posed,
+    n: &Vec3,
+    d: f64,
+    sides: &[(Vec3, f64)],
+    faces: &[u32],
+) -> Option<(f64, Vec3, Vec3)> {
+    // The walk's quick reject: the box above the plane.
+    if box_excess(&-n, -d, &b.lo, &b.hi) <= 0.0 {
+        return None;
+    }
+    let mut sums = FacetSums::default();
+    SCRATCH.with_borrow_mut(|sc| {
+        let Scratch {
+            clip: Clip {
+                poly, tmp, dist, ..
+            },
+            sides_clip,
+            ..
+        } = sc;
+        for &f in faces {
+            poly.clear();
+            dist.clear();
+            let mut behind = false;
+            for &i in sb.face(f as usize) {
+                // The height as the walk takes it (`sign n . v` with sign -1: the same bits).
+                let v = b.vertex(sb, i as usize);
+                let height = -n.dot(&v);
+                behind |= height >= -d;
+                poly.push(v);
+                dist.push(-height - d);
+            }
+            // The walk's faces are those around the vertices behind (height at least -d).
+            if !behind {
+                continue;
+            }
+            let beyond = |(m, e): &(Vec3, f64)| poly.iter().all(|x| m.dot(x) > *e);
+            if sides.iter().any(beyond) {
+                continue;
+            }
+            if clip_with(poly, tmp, dist) {
+                sums.add(sides_clip, poly, n, d, sides);
+            }
+        }
+    });
+    sums.result(n)
+}
+
+/// B's faces (ascending) that may reach behind the plane `n . x = d` within the facet's side
+/// planes `sides` after B and the facet have moved less than `band`: the faces around B's
+/// vertices within `band` in front of the plane or behind it, less those wholly beyond a
+/// side plane by more than `band`. `None` when every vertex is more than `band` in front.
+pub fn faces_near_facet(
+    sb: &Shape,
+    b: &Posed,
+    n: &Vec3,
+    d: f64,
+    sides: &[(Vec3, f64)],
+    band: f64,
+) -> Option<Vec<u32>> {
+    SCRATCH.with_borrow_mut(|sc| {
+        let Scratch {
+            side_b, faces_b, ..
+        } = sc;
+        if side_b.climb_to_top(sb, b, n, -1.0) < -d - band {
+            return None;
+        }
+        side_b.reach_down_to(sb, b, n, -1.0, -d - band);
+        faces_around(sb, &side_b.reach, faces_b);
+        let faces = (faces_b.iter().copied())
+            .filter(|&f| {
+                let corners = sb.face(f as usize);
+                !(sides.iter()).any(|(m, e)| {
+                    (corners.iter()).all(|&i| m.dot(&b.vertex(sb, i as usize)) > e + band)
+                })
+            })
+            .collect();
+        Some(faces)
+    })
+}
+
+/// The sums of [`overlap_behind_facet`] over B's clipped faces, each cut by the side planes:
+/// about a point on the plane near the part (its first vertex moved onto the plane), so that
+/// each term is of the overlap's size: 6 V, 24 x the moment (as `Acc`), 2 x the projected
+/// area of the faces (minus the cap's).
+#[derive(Default)]
+struct FacetSums {
+    origin: Option<Vec3>,
+    volume6: f64,
+    moment24: Vec3,
+    area2: f64,
+}
+
+impl FacetSums {
+    /// Adds B's face `poly`, clipped to the plane, cut by the side planes (into `cut`).
+    fn add(&mut self, cut: &mut Clip, poly: &[Vec3], n: &Vec3, d: f64, sides: &[(Vec3, f64)]) {
         let Clip {
             poly: cut,
             tmp,
             dist,
             ..
-        } = sides_clip;
-        each_face_behind(walk, side_b, faces_b, sb, b, n, d, sides, |poly| {
-            cut.clear();
-            cut.extend_from_slice(poly);
-            if !(sides.iter()).all(|(m, e)| clip(cut, tmp, dist, m, *e)) {
-                return true; // none of this face lies within the facet
-            }
-            let o = *origin.get_or_insert_with(|| cut[0] - n * (n.dot(&cut[0]) - d));
-            let y0 = cut[0] - o;
-            let h0 = n.dot(&y0);
-            for k in 1..cut.len() - 1 {
-                let (y1, y2) = (cut[k] - o, cut[k + 1] - o);
-                let (h1, h2) = (n.dot(&y1), n.dot(&y2));
-                // Twice the triangle's area projected on the facet, signed by its facing.
-                let p = n.dot(&(y1 - y0).cross(&(y2 - y0)));
-                let hs = h0 + h1 + h2;
-                volume6 += p * hs;
-                // 12 x the mean of h y over the triangle, and of h^2.
-                let hy = y0 * h0 + y1 * h1 + y2 * h2 + (y0 + y1 + y2) * hs;
-                let hh = h0 * h0 + h1 * h1 + h2 * h2 + hs * hs;
-                moment24 += (hy - n * (hh / 2.0)) * p;
-                area2 += p;
-            }
-            true
-        });
-    });
-    let o = origin?;
-    // B's faces below face away from the facet (p < 0, h < 0): the sums come out positive.
-    if volume6.is_nan() || volume6 <= 0.0 {
-        return None;
+        } = cut;
+        cut.clear();
+        cut.extend_from_slice(poly);
+        if !(sides.iter()).all(|(m, e)| clip(cut, tmp, dist, m, *e)) {
+            return; // none of this face lies within the facet
+        }
+        let o = *self
+            .origin
+            .get_or_insert_with(|| cut[0] - n * (n.dot(&cut[0]) - d));
+        let y0 = cut[0] - o;
+        let h0 = n.dot(&y0);
+        for k in 1..cut.len() - 1 {
+            let (y1, y2) = (cut[k] - o, cut[k + 1] - o);
+            let (h1, h2) = (n.dot(&y1), n.dot(&y2));
+            // Twice the triangle's area projected on the facet, signed by its facing.
+            let p = n.dot(&(y1 - y0).cross(&(y2 - y0)));
+            let hs = h0 + h1 + h2;
+            self.volume6 += p * hs;
+            // 12 x the mean of h y over the triangle, and of h^2.
+            let hy = y0 * h0 + y1 * h1 + y2 * h2 + (y0 + y1 + y2) * hs;
+            let hh = h0 * h0 + h1 * h1 + h2 * h2 + hs * hs;
+            self.moment24 += (hy - n * (hh / 2.0)) * p;
+            self.area2 += p;
+        }
     }
-    let volume = volume6 / 6.0;
-    let centroid = o + moment24 / (4.0 * volume6);
-    Some((volume, centroid, n * (-area2 / 2.0)))
+
+    /// Volume, centroid and cap; `None` when nothing was added or no volume.
+    fn result(&self, n: &Vec3) -> Option<(f64, Vec3, Vec3)> {
+        let o = self.origin?;
+        // B's faces below face away from the facet (p < 0, h < 0): the sums come out positive.
+        if self.volume6.is_nan() || self.volume6 <= 0.0 {
+            return None;
+        }
+        let volume = self.volume6 / 6.0;
+        let centroid = o + self.moment24 / (4.0 * self.volume6);
+        Some((volume, centroid, n * (-self.area2 / 2.0)))
+    }
 }
 
 /// How far above a plane wall a large hull's kept wall set reaches, as a fraction of the
