@@ -329,12 +329,12 @@ impl FacetSet<'_> {
     }
 
     /// True when the set still holds for body `b` (bounding radius `radius`) against `wall`,
-    /// `near` the triangles the wall's grid finds near the body's box now: the same scale,
-    /// those triangles all tracked, and the body's motion since ([`motion_bound`]) plus the
+    /// whose `grid` is made for the nodes as they are now: the same scale, every triangle the
+    /// grid finds near the body's box tracked, and the body's motion since ([`motion_bound`]) plus the
     /// tilt factor times the farthest a tracked node has moved less than the band (by a
     /// thousandth of it, far above the round-off). Then no face outside a list, nor any
     /// triangle unlisted, can reach a triangle's prism: the listed faces hold every piece.
-    fn holds(&self, wall: &Wall, b: &Posed, radius: f64, near: &[u32]) -> bool {
+    fn holds(&self, wall: &Wall, b: &Posed, radius: f64, grid: &FacetGrid) -> bool {
         let WallKind::Facets { nodes, .. } = &wall.kind else {
             return false;
         };
@@ -345,8 +345,7 @@ impl FacetSet<'_> {
         if scale != b.scale {
             return false;
         }
-        let tracked = self.tracked();
-        if !near.iter().all(|k| tracked.binary_search(k).is_ok()) {
+        if !grid.near_all_in(&b.lo, &b.hi, self.tracked()) {
             return false;
         }
         let (band, tilt) = (self.number(0), self.number(1));
@@ -673,8 +672,7 @@ impl Wall {
         let Some(grid) = grid else {
             return (self.pieces_walked(s, b, radius, None), WallFound::None);
         };
-        let near = grid.near(&b.lo, &b.hi);
-        let kept = kept.filter(|w| FacetSet(w).holds(self, b, radius, &near));
+        let kept = kept.filter(|w| FacetSet(w).holds(self, b, radius, grid));
         let fresh = match kept {
             Some(_) => None,
             None => match self.facet_set(s, b, radius, grid) {
@@ -1113,6 +1111,24 @@ impl FacetGrid {
         out.sort_unstable();
         out.dedup();
         out
+    }
+
+    /// Whether every triangle [`FacetGrid::near`] would find is in `tracked` (ascending): the
+    /// same test, without making the list.
+    pub fn near_all_in(&self, lo: &Vec3, hi: &Vec3, tracked: &[u32]) -> bool {
+        let b = (*lo, *hi);
+        if !overlap_boxes(&b, &self.bounds) {
+            return true;
+        }
+        let mut all = true;
+        self.cells.each(lo, hi, |c| {
+            if all {
+                all = (self.listed(c).iter())
+                    .filter(|&&k| overlap_boxes(&self.boxes[k as usize], &b))
+                    .all(|k| tracked.binary_search(k).is_ok());
+            }
+        });
+        all
     }
 
     /// Whether [`FacetGrid::near`] would find any triangle.
