@@ -145,3 +145,25 @@ fn the_membranes_energy_audit_closes() {
         "{coarse:e} against {fine:e}"
     );
 }
+
+/// A membrane's contact has no shear law (its stiffness is per unit volume): a scene that gives
+/// the walls friction beside a membrane is refused with a message that says so, not stepped
+/// with a stiffness in N/m^3 taken for a shear spring's N/m.
+#[test]
+fn wall_friction_beside_a_membrane_is_refused() {
+    let mut w = tube(0.0, 0.3, true);
+    let mut text = Vec::new();
+    shared::dem::io::state::write_world(&w, &mut text).unwrap();
+    assert!(shared::dem::io::state::read_world(text.as_slice()).is_ok());
+    w.material.wall_friction = 0.3;
+    let mut text = Vec::new();
+    shared::dem::io::state::write_world(&w, &mut text).unwrap();
+    let err = shared::dem::io::state::read_world(text.as_slice())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        err.contains("wall_friction must be 0 with a membrane wall, got 0.3"),
+        "{err}"
+    );
+}

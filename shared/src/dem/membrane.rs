@@ -49,7 +49,9 @@ pub struct Sheet {
     pub node_mass: f64,
     /// Stiffness of the particles' contacts with the membrane, N/m^3: each facet a Winkler
     /// foundation, the pressure on it this times the local penetration (a sheet of modulus
-    /// `E` and thickness `t` compressed: `E / t`); and the shear stiffness, N/m^3 likewise.
+    /// `E` and thickness `t` compressed: `E / t`); and a shear stiffness, N/m^3 likewise, that
+    /// no law reads: the contacts are frictionless (a scene with wall friction beside a
+    /// membrane is refused).
     pub kn: f64,
     pub ks: f64,
     /// Local damping of the nodes (`None`: the material's, as the bodies).

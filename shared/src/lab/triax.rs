@@ -449,6 +449,12 @@ impl Triax {
         if world.bodies.is_empty() {
             return Err(TriaxError::NotCylinder("no particles".into()));
         }
+        if world.material.wall_friction > 0.0 {
+            return Err(TriaxError::Membrane(format!(
+                "its contacts are frictionless, so the specimen's wall_friction must be 0, got {}",
+                world.material.wall_friction
+            )));
+        }
         let sizes: Vec<f64> = (world.bodies.iter())
             .map(|b| equivalent_diameter(world.shapes[b.shape as usize].volume) * b.scale)
             .collect();

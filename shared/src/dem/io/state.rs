@@ -183,7 +183,8 @@ pub struct WallRecord {
 
 /// A facet wall's membrane ([`Membrane`]): its material (`young` Pa, `poisson`, `thickness` m),
 /// the `pressure` on its outer side (Pa), the mass of each node (kg), the stiffness of the
-/// particles' contacts with it (`kn`, `ks`, N/m), its pinned nodes
+/// particles' contacts with it (`kn`, N/m^3, a Winkler foundation's; `ks` likewise, which
+/// no law reads while the contacts are frictionless, as reading demands), its pinned nodes
 /// (`[node, wall]`) and whether they are `sealed` to their walls or slide on them, and the
 /// nodes' `rest` positions (the unstressed membrane).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -942,10 +943,19 @@ impl<R: BufRead> Iterator for StateStream<R> {
     }
 }
 
-/// Membranes' pins name walls that exist, other than their own, and sliding pins planes; the
-/// membranes' kinetic and elastic energy into the audit.
+/// Membranes' pins name walls that exist, other than their own, and sliding pins planes; no
+/// wall friction beside a membrane; the membranes' kinetic and elastic energy into the audit.
 fn check_membranes(world: &mut World) -> Result<(), StateError> {
     let walls = world.walls.len();
+    let friction = world.material.wall_friction;
+    if friction > 0.0 && world.walls.iter().any(|w| w.membrane.is_some()) {
+        // The contact law's shear spring is a spring's (N/m); a membrane's stiffness is a
+        // Winkler foundation's (N/m^3), which has no shear law behind it.
+        return Err(StateError::Scene(format!(
+            "a membrane's contacts are frictionless (its stiffness is per unit volume, with no \
+             shear law): the material's wall_friction must be 0 with a membrane wall, got {friction}"
+        )));
+    }
     let (mut kinetic, mut elastic) = (0.0, 0.0);
     for (k, w) in world.walls.iter().enumerate() {
         let (
