@@ -365,7 +365,7 @@ fn triax_shows_its_progress_tagged_and_takes_its_threads_from_slurm() {
         .find(|l| l.contains("consolidation step"))
         .expect("a consolidation status");
     assert!(
-        consolidating.contains("(ends below 2e-3)") && consolidating.contains("steps/s"),
+        consolidating.contains("(ends below 5e-3)") && consolidating.contains("steps/s"),
         "{consolidating}"
     );
     let loading = (lines.iter())

@@ -104,7 +104,7 @@ struct Cli {
     tolerance: f64,
     /// ... and the unbalanced-force ratio of the load-bearing bodies (two contacts or more),
     /// averaged over --balance-window steps, below this
-    #[arg(long, default_value_t = 2e-3, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 5e-3, allow_negative_numbers = true)]
     unbalanced: f64,
     /// Steps over which consolidation's unbalanced ratio is averaged (each block's mean checked
     /// at its end, with the platens)

@@ -129,7 +129,7 @@ impl Default for Params {
             inertia_scaling: true,
             safety: 0.2,
             tolerance: 0.02,
-            unbalanced: 2e-3,
+            unbalanced: 5e-3,
             balance_window: BALANCE_WINDOW,
             consolidation_damping: None,
             gain: 0.5,
