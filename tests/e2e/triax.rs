@@ -438,8 +438,17 @@ fn triax_rejects_what_is_not_a_cylindrical_specimen_and_nonsense_options() {
     // Wall friction: the membrane's contacts have no shear law.
     let rough = String::from_utf8_lossy(specimen())
         .replace("\"wall_friction\":0.0", "\"wall_friction\":0.2");
-    assert_ne!(rough.as_bytes(), specimen(), "the specimen names its wall friction");
-    rejects(&[], rough.as_bytes(), 1, &["frictionless", "wall_friction must be 0, got 0.2"]);
+    assert_ne!(
+        rough.as_bytes(),
+        specimen(),
+        "the specimen names its wall friction"
+    );
+    rejects(
+        &[],
+        rough.as_bytes(),
+        1,
+        &["frictionless", "wall_friction must be 0, got 0.2"],
+    );
     rejects(
         &["--summary", "/nonexistent/dir/s.json"],
         specimen(),

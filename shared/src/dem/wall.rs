@@ -132,7 +132,11 @@ fn winkler(
         .iter()
         .map(|p| (p.3 - point).cross(&(p.5 * p.2)))
         .sum();
-    let (mut node_weights, mut node_pushes) = (Vec::new(), Vec::new());
+    // Made to size: three nodes a piece (grown by pushes they were reallocated per contact).
+    let (mut node_weights, mut node_pushes) = (
+        Vec::with_capacity(3 * pieces.len()),
+        Vec::with_capacity(3 * pieces.len()),
+    );
     let (mut average, mut power) = (*rigid, 0.0);
     for (t, q, v, c, _, n) in pieces {
         for (k, w) in barycentric(q, c).into_iter().enumerate() {
@@ -798,7 +802,8 @@ impl Wall {
         else {
             return Vec::new();
         };
-        let mut pieces = Vec::new();
+        // At most one piece a listed triangle: made to that size, not grown.
+        let mut pieces = Vec::with_capacity(set.counts().2);
         let misses = |lo: &Vec3, hi: &Vec3| (0..3).any(|k| lo[k] > b.hi[k] || b.lo[k] > hi[k]);
         let depth = self.prism_depth(radius);
         let reach = Vec3::repeat(depth);
