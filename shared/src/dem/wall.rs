@@ -106,11 +106,7 @@ type Piece = ([u32; 3], [Vec3; 3], f64, Vec3, Vec3, Vec3);
 /// the pieces' volume centroid, with the couple of the pushes about it; its surface velocity
 /// is the nodes' by the pieces' volumes, with the part along `F` set so that `F . v` is the
 /// power of the pushes on the nodes (what the membrane takes from the contact's work).
-fn winkler(
-    pieces: &[Piece],
-    node_velocities: &[Vec3],
-    rigid: &Vec3,
-) -> Option<(WallHit, WallFound)> {
+fn winkler(pieces: &[Piece], node_velocities: &[Vec3], rigid: &Vec3) -> Option<WallHit> {
     let volume: f64 = pieces.iter().map(|p| p.2).sum();
     if !(volume > 0.0) {
         return None;
@@ -163,7 +159,7 @@ fn winkler(
         node_pushes,
         couple,
     };
-    Some((hit, WallFound::None))
+    Some(hit)
 }
 
 /// One spot of a wall contact: the overlap of a run of adjacent facets' pieces and the normal
@@ -277,9 +273,9 @@ fn apart_from_prism(
 const FACET_BAND_REL: f64 = 0.02;
 
 /// Words of a facet set before its lists: the body's pose ([`pose_words`]), the band and the
-/// tilt factor (2 words each), then the counts of tracked triangles, tracked nodes and listed
-/// triangles.
-const FACET_SET_HEAD: usize = POSE_WORDS + 4 + 3;
+/// tilt factor (2 words each), the number of the grid it was made with ([`FacetGrid::id`], 2
+/// words), then the counts of tracked triangles, tracked nodes and listed triangles.
+const FACET_SET_HEAD: usize = POSE_WORDS + 4 + 2 + 3;
 
 /// A body's **facet set** against a facet wall, kept from one step to the next as the walls'
 /// other kept sets are (in the contact list, not in the state): the triangles near the body
@@ -299,6 +295,12 @@ struct FacetSet<'a>(&'a [u32]);
 impl FacetSet<'_> {
     fn number(&self, k: usize) -> f64 {
         join(&self.0[POSE_WORDS + 2 * k..])
+    }
+
+    /// The number of the grid the set was made with.
+    fn grid(&self) -> u64 {
+        let w = &self.0[POSE_WORDS + 4..];
+        u64::from(w[0]) | u64::from(w[1]) << 32
     }
 
     fn counts(&self) -> (usize, usize, usize) {
@@ -333,11 +335,14 @@ impl FacetSet<'_> {
     }
 
     /// True when the set still holds for body `b` (bounding radius `radius`) against `wall`,
-    /// whose `grid` is made for the nodes as they are now: the same scale, every triangle the
-    /// grid finds near the body's box tracked, and the body's motion since ([`motion_bound`]) plus the
-    /// tilt factor times the farthest a tracked node has moved less than the band (by a
-    /// thousandth of it, far above the round-off). Then no face outside a list, nor any
-    /// triangle unlisted, can reach a triangle's prism: the listed faces hold every piece.
+    /// whose `grid` [`FacetGrid::fits`] the nodes as they are now: the same scale, every
+    /// triangle the grid finds near the body's box tracked, and the body's motion since
+    /// ([`motion_bound`]) plus the tilt factor times the farthest a tracked node has moved less
+    /// than the band (by a thousandth of it, far above the round-off). Then no face outside a
+    /// list, nor any triangle unlisted, can reach a triangle's prism: the listed faces hold
+    /// every piece. With the grid the set was made with, every triangle it finds near the box
+    /// is tracked without asking it: the box lies within the one it was asked for when the set
+    /// was made (grown by the band, more than the body has moved).
     fn holds(&self, wall: &Wall, b: &Posed, radius: f64, grid: &FacetGrid) -> bool {
         let WallKind::Facets { nodes, .. } = &wall.kind else {
             return false;
@@ -349,11 +354,14 @@ impl FacetSet<'_> {
         if scale != b.scale {
             return false;
         }
-        if !grid.near_all_in(&b.lo, &b.hi, self.tracked()) {
-            return false;
-        }
         let (band, tilt) = (self.number(0), self.number(1));
         let budget = 0.999 * band - motion_bound((&pos, &rot), (&b.pos, &b.orientation), radius);
+        if !(budget > 0.0) {
+            return false;
+        }
+        if self.grid() != grid.id && !grid.near_all_in(&b.lo, &b.hi, self.tracked()) {
+            return false;
+        }
         let mut farthest = 0.0f64;
         for (i, x) in self.nodes() {
             let Some(now) = nodes.get(i) else {
@@ -422,13 +430,13 @@ impl Wall {
 
     /// The contact of body `b` (shape `s`, bounding radius `radius`) with this wall.
     pub fn touch(&self, s: &Shape, b: &Posed, radius: f64) -> Option<WallHit> {
-        self.touch_kept(s, b, radius, None, None)
-            .map(|(hit, _)| hit)
+        self.touch_kept(s, b, radius, None, None).0
     }
 
     /// [`Wall::touch`], to the bit, trying the wall set `kept` the contact made last step (a
     /// plane's contact with a large hull: [`overlap_half_space_kept`]) and handing back the
-    /// set to keep. With `grid`, a facet wall's [`FacetGrid`] (made since its nodes last
+    /// set to keep, touching or not (a facet set holds for a body near the wall as well as for
+    /// one touching it, so a body that comes near keeps it until it touches). With `grid`, a facet wall's [`FacetGrid`] (made since its nodes last
     /// moved, for bodies as large as this one at least), only the triangles near the body are
     /// tested; without it, all of them.
     pub fn touch_kept(
@@ -438,26 +446,25 @@ impl Wall {
         radius: f64,
         kept: Option<&[u32]>,
         grid: Option<&FacetGrid>,
-    ) -> Option<(WallHit, WallFound)> {
+    ) -> (Option<WallHit>, WallFound) {
         let hit = match &self.kind {
             WallKind::Plane { normal, offset } => {
                 let (o, found) = overlap_half_space_kept(s, b, normal, *offset, radius, kept);
-                let hit = WallHit {
-                    overlap: o?,
+                let hit = o.map(|overlap| WallHit {
+                    overlap,
                     velocity: self.velocity,
                     node_weights: Vec::new(),
                     node_pushes: Vec::new(),
                     couple: Vec3::zeros(),
-                };
-                return Some((hit, found));
+                });
+                return (hit, found);
             }
             WallKind::Facets {
                 node_velocities, ..
             } => {
                 let (pieces, found) = self.facet_pieces(s, b, radius, kept, grid);
                 if self.membrane.is_some() {
-                    return winkler(&pieces, node_velocities, &self.velocity)
-                        .map(|(hit, _)| (hit, found));
+                    return (winkler(&pieces, node_velocities, &self.velocity), found);
                 }
                 // Spots: pieces on triangles that share a node, and so on; each spot's pieces
                 // summed in piece order (`labels[k]`: the label of `list[k]`'s pieces).
@@ -482,7 +489,7 @@ impl Wall {
                     }
                 }
                 if list.is_empty() {
-                    return None;
+                    return (None, found);
                 }
                 let (overlap, _, couple) = spots(&list);
                 // Each spot's share of the force, then each piece's of its spot's by volume.
@@ -508,7 +515,7 @@ impl Wall {
                     node_pushes: Vec::new(),
                     couple,
                 };
-                return Some((hit, found));
+                return (Some(hit), found);
             }
             WallKind::Cylinder {
                 point,
@@ -541,7 +548,7 @@ impl Wall {
                     .map(|(x, y)| x * x + y * y)
                     .fold(0.0f64, f64::max);
                 if far < inscribed * inscribed {
-                    return None;
+                    return (None, WallFound::None);
                 }
                 let theta = cy.atan2(cx);
                 // The angles about the box centre's that hold the facets to test (relative to
@@ -561,7 +568,7 @@ impl Wall {
                     Some(narrow.then_some((lo_angle, hi_angle)))
                 };
                 let (first, last) = match window {
-                    None => return None,
+                    None => return (None, WallFound::None),
                     Some(Some((lo_angle, hi_angle))) => (
                         ((theta + lo_angle) / step).floor() as i64,
                         ((theta + hi_angle) / step).floor() as i64,
@@ -645,7 +652,7 @@ impl Wall {
                     })
                     .collect();
                 if list.is_empty() {
-                    return None;
+                    return (None, WallFound::None);
                 }
                 let (overlap, normal, couple) = spots(&list);
                 Some(WallHit {
@@ -657,7 +664,7 @@ impl Wall {
                 })
             }
         };
-        hit.map(|h| (h, WallFound::None))
+        (hit, WallFound::None)
     }
 
     /// A facet wall's pieces for body `b` (a posed `s` of bounding radius `radius`): the
@@ -775,6 +782,7 @@ impl Wall {
         let tilt = 1.0 + 2.0 * (2.0 * radius + depth) / altitude;
         let mut w: Vec<u32> = pose_words(&b.pos, &b.orientation, b.scale).collect();
         w.extend([band, tilt].into_iter().flat_map(split));
+        w.extend([grid.id as u32, (grid.id >> 32) as u32]);
         w.extend([
             tracked.len() as u32,
             node_ids.len() as u32,
@@ -1015,11 +1023,13 @@ pub fn grid_triangles(cols: usize, rows: usize) -> Vec<[u32; 3]> {
 /// The triangles of a facet wall by cell of a uniform grid over their prisms' boxes (for the
 /// deepest prism of the scene's bodies), so that a body tests only the triangles near it (a
 /// box's sides as 4 x 1 152 facets, tested by every body that reached the wall, made the 2000
-/// I_P bed's steps 20x dearer: `benches/walls.rs`). Made anew whenever the nodes move: it costs
-/// a pass over the triangles.
+/// I_P bed's steps 20x dearer: `benches/walls.rs`). Each box is grown by a skin, so that the
+/// grid stays good while the nodes move less than it allows ([`FacetGrid::fits`]): made anew
+/// every step, it took 6 % of a triaxial test's step on one thread, and a whole step's share
+/// of the other thread's time on two, as one thread made it.
 #[derive(Clone, Debug)]
 pub struct FacetGrid {
-    /// Each triangle's prism's box (see [`FacetGrid::of`]).
+    /// Each triangle's prism's box grown by the skin (see [`FacetGrid::of`]).
     boxes: Vec<(Vec3, Vec3)>,
     /// All triangles' box.
     bounds: (Vec3, Vec3),
@@ -1027,14 +1037,46 @@ pub struct FacetGrid {
     /// Cell `c`'s triangles are `ids[start[c]..start[c + 1]]`, ascending.
     start: Vec<u32>,
     ids: Vec<u32>,
+    /// What the grid was made for: the wall's triangles and nodes then, the bodies' largest
+    /// bounding radius and the prisms' depth for it, the skin, and the smallest altitude of a
+    /// triangle then.
+    triangles: Vec<[u32; 3]>,
+    nodes: Vec<Vec3>,
+    radius: f64,
+    depth: f64,
+    skin: f64,
+    altitude: f64,
+    /// This grid's number, unlike any other grid's made in this process: a facet set made
+    /// with this grid need not check the grid again ([`FacetSet::holds`]).
+    id: u64,
 }
+
+/// The box of triangle `q`'s prism `depth` deep, grown a little for round-off (bodies of
+/// bounding radius `radius` at most).
+fn prism_box(q: &[Vec3; 3], depth: f64, radius: f64) -> (Vec3, Vec3) {
+    let (lo, hi) = (q[0].inf(&q[1]).inf(&q[2]), q[0].sup(&q[1]).sup(&q[2]));
+    let back = -(q[1] - q[0]).cross(&(q[2] - q[0])).normalize() * depth;
+    let (lo, hi) = (lo.inf(&(lo + back)), hi.sup(&(hi + back)));
+    let size = lo.abs().sup(&hi.abs()).max();
+    let pad = Vec3::repeat(1e-9 * radius + 1e-12 * size);
+    (lo - pad, hi + pad)
+}
+
+/// The skin a [`FacetGrid`]'s boxes are grown by, as a fraction of their mean side. On the
+/// paper-scale triaxial test (10 mm facets, prisms 10 mm deep) it is about 1 mm, and the grid
+/// is made anew every few hundred steps while the platens move.
+const GRID_SKIN_REL: f64 = 0.05;
+
+/// The number of the next [`FacetGrid`] made.
+static NEXT_GRID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 impl FacetGrid {
     /// The grid of a facet wall's triangles for bodies of bounding radius `radius` at most;
     /// `None` for other walls, or a wall of no triangles. Each triangle is listed by the box of
     /// its prism for a body of that radius (extruded by `2 radius` against its normal, as
-    /// [`Wall::touch`] takes it), grown a little for round-off: a body's prism of a triangle
-    /// lies within it.
+    /// [`Wall::touch`] takes it), grown by the skin ([`GRID_SKIN_REL`] of the boxes' mean
+    /// side) and a little for round-off: a body's prism of a triangle lies within it while
+    /// the grid [`FacetGrid::fits`] the wall.
     pub fn of(wall: &Wall, radius: f64) -> Option<FacetGrid> {
         let WallKind::Facets {
             nodes, triangles, ..
@@ -1043,23 +1085,33 @@ impl FacetGrid {
             return None;
         };
         let depth = wall.prism_depth(radius);
-        let boxes: Vec<(Vec3, Vec3)> = (triangles.iter())
+        let mut altitude = f64::INFINITY;
+        let mut boxes: Vec<(Vec3, Vec3)> = (triangles.iter())
             .map(|t| {
                 let q = t.map(|i| nodes[i as usize]);
-                let (lo, hi) = (q[0].inf(&q[1]).inf(&q[2]), q[0].sup(&q[1]).sup(&q[2]));
-                let n = (q[1] - q[0]).cross(&(q[2] - q[0])).normalize();
-                let back = -n * depth;
-                let (lo, hi) = (lo.inf(&(lo + back)), hi.sup(&(hi + back)));
-                let size = lo.abs().sup(&hi.abs()).max();
-                let pad = Vec3::repeat(1e-9 * radius + 1e-12 * size);
-                (lo - pad, hi + pad)
+                let cross = (q[1] - q[0]).cross(&(q[2] - q[0]));
+                let longest = [(q[1] - q[0]), (q[2] - q[1]), (q[0] - q[2])]
+                    .iter()
+                    .map(|e| e.norm_squared())
+                    .fold(0.0, f64::max);
+                altitude = altitude.min(cross.norm() / longest.sqrt());
+                prism_box(&q, depth, radius)
             })
             .collect();
+        let n = boxes.len();
+        let side = boxes.iter().map(|b| (b.1 - b.0).max()).sum::<f64>() / n as f64;
+        // No skin where a triangle is folded flat (no altitude): made anew at every move.
+        let skin = if altitude > 0.0 {
+            GRID_SKIN_REL * side
+        } else {
+            0.0
+        };
+        for b in &mut boxes {
+            *b = (b.0 - Vec3::repeat(skin), b.1 + Vec3::repeat(skin));
+        }
         let lo = boxes.iter().map(|b| b.0).reduce(|a, b| a.inf(&b))?;
         let hi = boxes.iter().map(|b| b.1).reduce(|a, b| a.sup(&b))?;
         // Cells about a triangle's size, and at most a few per triangle.
-        let n = boxes.len();
-        let side = boxes.iter().map(|b| (b.1 - b.0).max()).sum::<f64>() / n as f64;
         let extent = hi - lo;
         let count = |cell: f64| extent.map(|e| ((e / cell).floor() as usize + 1).min(1 << 20));
         let mut cell = side.max(extent.max() * 1e-6).max(f64::MIN_POSITIVE);
@@ -1093,7 +1145,44 @@ impl FacetGrid {
             cells,
             start,
             ids,
+            triangles: triangles.clone(),
+            nodes: nodes.clone(),
+            radius,
+            depth,
+            skin,
+            altitude,
+            id: NEXT_GRID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         })
+    }
+
+    /// Whether the grid still serves `wall` for bodies of bounding radius `radius`: made for
+    /// the same triangles, radius and depth, and each prism's box now within its box in the
+    /// grid. A node that moved by `delta` moves a box's corners by `delta` and tilts the
+    /// triangle's plane by at most `4 delta / (h - 2 delta)` (`h` the smallest altitude when
+    /// the grid was made: the linear height change over a triangle whose corners rise by at
+    /// most `2 delta` relative to each other has a slope of at most `4 delta / h`), which
+    /// moves the prism's far corners by `depth` times that: while the farthest node has moved
+    /// less than takes that sum to the skin (less a thousandth), the grid serves.
+    pub fn fits(&self, wall: &Wall, radius: f64) -> bool {
+        let WallKind::Facets {
+            nodes, triangles, ..
+        } = &wall.kind
+        else {
+            return false;
+        };
+        if radius != self.radius
+            || wall.prism_depth(radius) != self.depth
+            || nodes.len() != self.nodes.len()
+            || *triangles != self.triangles
+        {
+            return false;
+        }
+        let delta = (nodes.iter().zip(&self.nodes))
+            .map(|(x, x0)| (x - x0).norm_squared())
+            .fold(0.0, f64::max)
+            .sqrt();
+        let h = self.altitude - 2.0 * delta;
+        h > 0.0 && delta + self.depth * 4.0 * delta / h < 0.999 * self.skin
     }
 
     /// The triangles listed in cell `c`.
@@ -1614,13 +1703,13 @@ mod tests {
             let grid = FacetGrid::of(&w, r).expect("a facet wall has a grid");
             let (at, turn) = pose(k);
             let b = s.posed(&at, &turn, scale);
-            let with = w.touch_kept(s, &b, r, kept.as_deref(), Some(&grid));
-            let fresh = w.touch_kept(s, &b, r, None, Some(&grid));
-            let walked = w.touch_kept(s, &b, r, None, None);
+            let (with, found) = w.touch_kept(s, &b, r, kept.as_deref(), Some(&grid));
+            let (fresh, _) = w.touch_kept(s, &b, r, None, Some(&grid));
+            let (walked, _) = w.touch_kept(s, &b, r, None, None);
             for other in [&fresh, &walked] {
                 match (&with, other) {
                     (None, None) => {}
-                    (Some((x, _)), Some((y, _))) => {
+                    (Some(x), Some(y)) => {
                         assert_eq!(x.overlap, y.overlap, "step {k}");
                         assert_eq!(x.node_weights, y.node_weights, "step {k}");
                         assert_eq!(x.node_pushes, y.node_pushes, "step {k}");
@@ -1633,21 +1722,17 @@ mod tests {
                     ),
                 }
             }
-            // As the contact list keeps it: a new set replaces the last, a contact gone
-            // takes its set with it.
-            match with.map(|(_, found)| found) {
-                Some(WallFound::Kept) => kept_steps += 1,
-                Some(WallFound::New(w)) => {
+            // As the world keeps it, touching or not (a body near the wall keeps its set in
+            // the world's near sets): a new set replaces the last.
+            match found {
+                WallFound::Kept => kept_steps += 1,
+                WallFound::New(w) => {
                     new_steps += 1;
                     kept = Some(w);
                 }
-                Some(WallFound::None) => kept = None,
-                None => {
-                    kept = None;
-                    continue;
-                }
+                WallFound::None => kept = None,
             }
-            touching += 1;
+            touching += usize::from(with.is_some());
         }
         (kept_steps, new_steps, touching)
     }
@@ -1803,6 +1888,34 @@ mod tests {
         }
     }
 
+    /// A named hard case: a body that comes near the sleeve without touching it, presses into
+    /// it and draws back (from a fifth of its radius short of the tube's circle to a twentieth
+    /// beyond, the facets lying up to 0.0086 inside it): the set it made while near is kept
+    /// into the contact and out of it, as the world keeps near bodies' sets, and every step
+    /// agrees with a new set and with the walk.
+    #[test]
+    fn a_body_near_the_sleeve_keeps_its_set_before_and_after_it_touches() {
+        for (s, scale) in hulls().iter().map(|(s, k)| (s, *k)) {
+            let r = s.radius * scale;
+            let turn = UnitQuaternion::from_euler_angles(0.3, 1.1, -0.4);
+            let steps = 300;
+            let (kept, new, touching) = follow(
+                s,
+                scale,
+                steps,
+                |_| tube(),
+                |k| {
+                    let phase = k as f64 / steps as f64;
+                    let out = r * (0.25 * (1.0 - (2.0 * phase - 1.0).abs()) - 0.2);
+                    (pressed(s, scale, &turn, 0.7, 1.2, out), turn)
+                },
+            );
+            assert!((30..270).contains(&touching), "{touching} steps touching");
+            assert_eq!(kept + new, steps, "every step has a set, touching or not");
+            assert!(kept > 5 * new, "{kept} kept, {new} new");
+        }
+    }
+
     /// The grid the step uses changes no facet contact, to the bit, and rules out only bodies
     /// that touch nothing: bodies from 1/50 to the size of the tube's triangles, in and across
     /// its surface and its floor's, the grid made for the largest of them.
@@ -1823,19 +1936,19 @@ mod tests {
                 let scale = scales[k % 3];
                 // Near the tube's surface (or the floor), up to a few sizes in or out.
                 let at = if tube {
-                    let (t, r) = (u() * std::f64::consts::TAU, 1.0 + 0.4 * (u() - 0.5));
+                    let (t, r) = (u() * std::f64::consts::TAU, 1.0 + 0.6 * (u() - 0.5));
                     Vec3::new(r * t.cos(), r * t.sin(), 2.6 * u() - 0.1)
                 } else {
-                    Vec3::new(5.0 * u() - 2.5, 5.0 * u() - 2.5, 0.4 * (u() - 0.5))
+                    Vec3::new(5.0 * u() - 2.5, 5.0 * u() - 2.5, 0.6 * (u() - 0.5))
                 };
                 let turn = UnitQuaternion::from_euler_angles(7.0 * u(), 7.0 * u(), 7.0 * u());
                 let b = s.posed(&at, &turn, scale);
                 let r = s.radius * scale;
-                let all = wall.touch_kept(&s, &b, r, None, None);
-                let near = wall.touch_kept(&s, &b, r, None, Some(&grid));
+                let (all, _) = wall.touch_kept(&s, &b, r, None, None);
+                let (near, _) = wall.touch_kept(&s, &b, r, None, Some(&grid));
                 match (&all, &near) {
                     (None, None) => {}
-                    (Some((x, _)), Some((y, _))) => {
+                    (Some(x), Some(y)) => {
                         assert_eq!(x.overlap, y.overlap, "pose {k}");
                         assert_eq!(x.node_weights, y.node_weights, "pose {k}");
                         assert_eq!((x.velocity, x.couple), (y.velocity, y.couple), "pose {k}");
@@ -1853,6 +1966,56 @@ mod tests {
                 "{touching} touching, {out} ruled out: too few to test"
             );
         }
+    }
+
+    /// A named hard case: a grid kept while the nodes move (each 1e-4 a step along a random
+    /// direction of its own, so that the planes tilt steadily): while it fits the nodes,
+    /// every triangle's prism box lies within its box in the grid, and it stops fitting
+    /// before the nodes have moved beyond its skin.
+    #[test]
+    fn a_kept_grid_holds_every_prism_while_it_fits_the_nodes() {
+        use rand::{RngCore, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let mut u = move || crate::math::unit_f64(rng.next_u64());
+        let mut tube_rng = rand_chacha::ChaCha8Rng::seed_from_u64(6);
+        let mut wall = bumpy_tube(24, 8, &mut tube_rng);
+        let radius = 0.1;
+        let grid = FacetGrid::of(&wall, radius).expect("a facet wall has a grid");
+        let depth = wall.prism_depth(radius);
+        // Each node's own direction, kept: neighbours moving apart tilt the planes steadily.
+        let dirs: Vec<Vec3> = match &wall.kind {
+            WallKind::Facets { nodes, .. } => (nodes.iter())
+                .map(|_| Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5).normalize())
+                .collect(),
+            _ => unreachable!(),
+        };
+        let mut kept = 0;
+        while grid.fits(&wall, radius) {
+            kept += 1;
+            let WallKind::Facets {
+                nodes, triangles, ..
+            } = &mut wall.kind
+            else {
+                unreachable!()
+            };
+            for (k, t) in triangles.iter().enumerate() {
+                let (lo, hi) = prism_box(&t.map(|i| nodes[i as usize]), depth, radius);
+                let (glo, ghi) = grid.boxes[k];
+                assert!(
+                    (0..3).all(|j| glo[j] <= lo[j] && hi[j] <= ghi[j]),
+                    "step {kept}: triangle {k}'s prism beyond its box in the grid"
+                );
+            }
+            for (x, dir) in nodes.iter_mut().zip(&dirs) {
+                *x += dir * 1e-4;
+            }
+            assert!(
+                kept < 10_000,
+                "the grid fits nodes that moved beyond its skin"
+            );
+        }
+        assert!(kept >= 10, "the grid fitted {kept} steps only");
+        assert!(FacetGrid::of(&wall, radius).is_some_and(|g| g.fits(&wall, radius)));
     }
 
     /// A floor z = 0 of two triangles over [-2, 2]^2, or of many small ones.

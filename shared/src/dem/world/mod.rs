@@ -33,7 +33,7 @@ use crate::dem::energy::Energy;
 use crate::dem::law::{flat_potential, Contact, Material};
 use crate::dem::parallel::filter_map_maybe_par;
 use crate::dem::shape::{Posed, Remade, Shape};
-use crate::dem::wall::{Wall, WallKind};
+use crate::dem::wall::{FacetGrid, Wall, WallKind};
 use crate::math::{cube, pow5, Vec3};
 use nalgebra::UnitQuaternion;
 use step::Buffers;
@@ -137,6 +137,14 @@ pub struct World {
     /// pair's shapes then, tried before a structure is looked for ([`overlap_kept_or`]). Only
     /// speed depends on it, so it is not part of the state.
     alternates: Alternates,
+    /// The facet sets ([`crate::dem::wall::Wall::touch_kept`]) of bodies whose boxes reached
+    /// a facet wall last step without touching it, by wall and body: a body that comes near
+    /// the membrane keeps its set until it touches (made anew each step, they were a sixth of
+    /// the membrane's sets). Only speed depends on them, so they are not part of the state.
+    near_sets: NearSets,
+    /// Each wall's [`FacetGrid`] (`None` for other walls), kept while it fits the nodes. Only
+    /// speed depends on it.
+    grids: Vec<Option<FacetGrid>>,
     broad: Broad,
     buffers: Buffers,
     /// Whether contacts keep their overlap's structure for the next step ([`crate::dem::collision::kept`]).
@@ -167,6 +175,9 @@ impl StepTimes {
     }
 }
 
+/// [`World::near_sets`]: by (wall, body), the facet set's words.
+pub(crate) type NearSets = std::collections::HashMap<(u32, u32), Vec<u32>>;
+
 /// [`World::alternates`]: by body pair, the shapes and the structure.
 type Alternates = std::collections::HashMap<(u32, u32), ([u32; 2], Structure)>;
 
@@ -189,6 +200,8 @@ impl World {
             posed: Vec::new(),
             kept_buffer: Vec::new(),
             alternates: Alternates::new(),
+            near_sets: NearSets::new(),
+            grids: Vec::new(),
             broad: Broad::default(),
             buffers: Buffers::default(),
             keep_structures: true,
@@ -279,6 +292,7 @@ impl World {
         }
         self.contacts.clear();
         self.alternates.clear();
+        self.near_sets.clear();
         self.separations = Separations::default();
         self.energy = Energy {
             kinetic: self.bodies.iter().map(Body::kinetic_energy).sum(),
@@ -355,6 +369,7 @@ impl World {
         self.posed.clear();
         self.kept_buffer.clear();
         self.alternates.clear();
+        self.near_sets.clear();
         new_id
     }
 

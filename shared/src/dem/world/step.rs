@@ -1,7 +1,7 @@
 //! One time step of the world: walls moved, bodies posed and paired, contact forces from the
 //! overlaps, then each body's forces gathered and its motion integrated.
 
-use super::{Body, World};
+use super::{Body, NearSets, World};
 use crate::dem::collision::broad::{overlap as overlap_boxes, Aabb, Broad};
 use crate::dem::collision::gaps::{Gap, Odometer, PackedHints, Separations};
 use crate::dem::collision::gjk::Hints;
@@ -52,6 +52,7 @@ struct Narrow {
     parts: Vec<Part>,
     wall_keys: Vec<ContactKey>,
     pair_parts: usize,
+    near_carry: Vec<NearCarry>,
 }
 
 /// What a wall contact hands back beside its [`Touch`] (kept apart, so that the touches,
@@ -76,8 +77,13 @@ struct WallExtra {
     at: usize,
 }
 
-/// A run of wall contacts' part of the contact list, and their touches.
-type WallChunk = (Part, Vec<(Touch, WallExtra)>);
+/// A run of wall contacts' part of the contact list, their touches, and the facet sets of the
+/// bodies near a facet wall that touched it not ([`NearCarry`]).
+type WallChunk = (Part, Vec<(Touch, WallExtra)>, Vec<NearCarry>);
+
+/// A facet set for [`World::near_sets`], by (wall, body): the one kept there (`None`), or new
+/// words.
+type NearCarry = ((u32, u32), Option<Vec<u32>>);
 
 /// An item of a step's narrow phase: a chunk of body pairs with their gap slots, or a run of
 /// (body, wall) pairs.
@@ -231,12 +237,13 @@ impl World {
         self.times.narrow += lap();
         let Paired {
             posed,
+            grids,
             gaps,
             poses,
             broad,
             mut buffers,
-            ..
         } = paired;
+        self.grids = grids;
         self.broad = broad;
         self.separations = gaps;
         let (chunks, old_parts) = self.integrate(narrow, &poses.omegas, par);
@@ -279,9 +286,14 @@ impl World {
             .filter(|_| faceted)
             .map(|b| self.bounding_radius(b))
             .fold(0.0, f64::max);
-        let grids: Vec<Option<FacetGrid>> = (self.walls.iter())
-            .map(|w| FacetGrid::of(w, largest))
-            .collect();
+        // The last step's grids while they fit the nodes (see `FacetGrid::fits`).
+        let mut grids = std::mem::take(&mut self.grids);
+        grids.resize_with(self.walls.len(), || None);
+        for (wall, grid) in self.walls.iter().zip(&mut grids) {
+            if !(grid.as_ref()).is_some_and(|g| g.fits(wall, largest)) {
+                *grid = FacetGrid::of(wall, largest);
+            }
+        }
         let mut gaps = std::mem::take(&mut self.separations);
         if gaps.odometers.len() != self.bodies.len() {
             // Odometers anew (a new world, or bodies added or taken away): the readings kept
@@ -289,6 +301,7 @@ impl World {
             gaps = Separations::new(&self.bodies);
             self.contacts.take_kept();
             self.alternates.clear();
+            self.near_sets.clear();
         }
         let poses = self.pose_all(&mut posed, &mut gaps.odometers, &grids);
         let mut broad = std::mem::take(&mut self.broad);
@@ -475,6 +488,7 @@ impl World {
             });
             // Room for every pair (grown by doubling, the ~250-byte items were copied over).
             let mut touches = Vec::with_capacity(wall_pairs.len());
+            let mut near = Vec::new();
             touches.extend((wall_pairs.iter()).filter_map(|&(i, w)| {
                 let b = &this.bodies[i as usize];
                 if b.fixed {
@@ -483,15 +497,38 @@ impl World {
                 let wall = &this.walls[w as usize];
                 let shape = &this.shapes[b.shape as usize];
                 let key = (Partner::Wall(w), i);
-                let (last, kept) = match this.contacts.seek(&mut at, &key) {
-                    Some((c, kept)) => (Some(c), kept.filter(|_| this.keep_structures)),
-                    None => (None, None),
-                };
-                let kept = kept.map(|k| k.words());
-                let radius = shape.radius * b.scale;
                 let grid = grids[w as usize].as_ref();
-                let (hit, found) =
-                    wall.touch_kept(shape, &posed[i as usize], radius, kept, grid)?;
+                // The set the contact kept, or for a body near a facet wall untouched last
+                // step, the one kept for it there.
+                let (last, kept, kept_near) = match this.contacts.seek(&mut at, &key) {
+                    Some((c, kept)) => {
+                        let kept = kept.filter(|_| this.keep_structures);
+                        (Some(c), kept.map(|k| k.words()), false)
+                    }
+                    None => {
+                        let kept = (this.near_sets.get(&(w, i)))
+                            .filter(|_| this.keep_structures && grid.is_some());
+                        (None, kept.map(Vec::as_slice), kept.is_some())
+                    }
+                };
+                let radius = shape.radius * b.scale;
+                let (hit, found) = wall.touch_kept(shape, &posed[i as usize], radius, kept, grid);
+                let Some(hit) = hit else {
+                    if this.keep_structures && grid.is_some() {
+                        match found {
+                            WallFound::Kept if kept_near => near.push(((w, i), None)),
+                            WallFound::Kept => near.push(((w, i), kept.map(<[u32]>::to_vec))),
+                            WallFound::New(words) => near.push(((w, i), Some(words))),
+                            WallFound::None => {}
+                        }
+                    }
+                    return None;
+                };
+                // A set kept among the near ones moves to the contact list.
+                let found = match (found, kept) {
+                    (WallFound::Kept, Some(words)) if kept_near => WallFound::New(words.to_vec()),
+                    (found, _) => found,
+                };
                 let material = wall_material(wall, &this.material);
                 let (mut contact, t) = this.touch(
                     &material,
@@ -521,7 +558,7 @@ impl World {
                 part.push(key, contact);
                 Some((t, extra))
             }));
-            (part, touches)
+            (part, touches, near)
         };
         // The body pairs in chunks, then the wall contacts, all spread over the threads (the
         // other thread starts from the back: the walls). Plane and cylinder walls are one
@@ -549,12 +586,14 @@ impl World {
             Work::Walls(w) => Done::Walls(wall_touches(w)),
         };
         let (mut chunks, mut wall_parts, mut wall_touches) = (Vec::new(), Vec::new(), Vec::new());
+        let mut near_carry = Vec::new();
         for done in spread(items, par, work) {
             match done {
                 Done::Pairs(c) => chunks.push(c),
-                Done::Walls((part, touches)) => {
+                Done::Walls((part, touches, near)) => {
                     wall_parts.push(part);
                     wall_touches.extend(touches);
+                    near_carry.extend(near);
                 }
             }
         }
@@ -572,6 +611,7 @@ impl World {
             parts,
             wall_keys,
             pair_parts,
+            near_carry,
         }
     }
 
@@ -586,7 +626,17 @@ impl World {
             parts,
             wall_keys,
             pair_parts,
+            near_carry,
         } = narrow;
+        // The near bodies' facet sets: those kept moved over, the new ones added, the rest
+        // (bodies that touch now, or left the wall) dropped.
+        let mut near_sets = NearSets::with_capacity(near_carry.len());
+        for (key, words) in near_carry {
+            if let Some(words) = words.or_else(|| self.near_sets.remove(&key)) {
+                near_sets.insert(key, words);
+            }
+        }
+        self.near_sets = near_sets;
         let dt = self.dt;
         // Made to size: collected from the chunks, the list grew by doubling (serially).
         let pair_touches: usize = chunks.iter().map(|c| c.touches.len()).sum();
