@@ -273,9 +273,22 @@ fn apart_from_prism(
 const FACET_BAND_REL: f64 = 0.02;
 
 /// Words of a facet set before its lists: the body's pose ([`pose_words`]), the band and the
-/// tilt factor (2 words each), the number of the grid it was made with ([`FacetGrid::id`], 2
-/// words), then the counts of tracked triangles, tracked nodes and listed triangles.
-const FACET_SET_HEAD: usize = POSE_WORDS + 4 + 2 + 3;
+/// tilt factor (2 words each), the number of the grid it was last checked with
+/// ([`FacetGrid::id`], 2 words), the box the grid was asked about (lower and upper corners, 6
+/// numbers of 2 words), then the counts of tracked triangles, tracked nodes and listed
+/// triangles.
+const FACET_SET_HEAD: usize = POSE_WORDS + 4 + 2 + 12 + 3;
+
+/// Whether a kept [`FacetSet`] still holds ([`FacetSet::holds`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Hold {
+    /// It does, checked with the grid it was last checked with.
+    Kept,
+    /// It does, checked with a newer grid: to keep with that grid's number.
+    Regridded,
+    /// It does not: a new set is made.
+    Broken,
+}
 
 /// A body's **facet set** against a facet wall, kept from one step to the next as the walls'
 /// other kept sets are (in the contact list, not in the state): the triangles near the body
@@ -297,10 +310,23 @@ impl FacetSet<'_> {
         join(&self.0[POSE_WORDS + 2 * k..])
     }
 
-    /// The number of the grid the set was made with.
+    /// The number of the grid the set was last checked with.
     fn grid(&self) -> u64 {
         let w = &self.0[POSE_WORDS + 4..];
         u64::from(w[0]) | u64::from(w[1]) << 32
+    }
+
+    /// The box the grid was asked about: the body's when the set was made, grown by the band.
+    fn asked(&self) -> (Vec3, Vec3) {
+        let x = |k: usize| join(&self.0[POSE_WORDS + 6 + 2 * k..]);
+        (Vec3::new(x(0), x(1), x(2)), Vec3::new(x(3), x(4), x(5)))
+    }
+
+    /// The same set, marked as checked with grid `id`.
+    fn regridded(&self, id: u64) -> Vec<u32> {
+        let mut w = self.0.to_vec();
+        w[POSE_WORDS + 4..POSE_WORDS + 6].copy_from_slice(&[id as u32, (id >> 32) as u32]);
+        w
     }
 
     fn counts(&self) -> (usize, usize, usize) {
@@ -340,36 +366,45 @@ impl FacetSet<'_> {
     /// ([`motion_bound`]) plus the tilt factor times the farthest a tracked node has moved less
     /// than the band (by a thousandth of it, far above the round-off). Then no face outside a
     /// list, nor any triangle unlisted, can reach a triangle's prism: the listed faces hold
-    /// every piece. With the grid the set was made with, every triangle it finds near the box
-    /// is tracked without asking it: the box lies within the one it was asked for when the set
-    /// was made (grown by the band, more than the body has moved).
-    fn holds(&self, wall: &Wall, b: &Posed, radius: f64, grid: &FacetGrid) -> bool {
+    /// every piece. The grid is asked about the box it was asked about when the set was made
+    /// (the body's then, grown by the band: it holds the body's box while the body has moved
+    /// less than the band), once for each grid: [`Hold::Regridded`] when a newer grid finds
+    /// nothing untracked there, and then with the same grid nothing needs asking.
+    fn holds(&self, wall: &Wall, b: &Posed, radius: f64, grid: &FacetGrid) -> Hold {
         let WallKind::Facets { nodes, .. } = &wall.kind else {
-            return false;
+            return Hold::Broken;
         };
         if self.0.len() < FACET_SET_HEAD {
-            return false;
+            return Hold::Broken;
         }
         let (pos, rot, scale) = pose_of(self.0);
         if scale != b.scale {
-            return false;
+            return Hold::Broken;
         }
         let (band, tilt) = (self.number(0), self.number(1));
         let budget = 0.999 * band - motion_bound((&pos, &rot), (&b.pos, &b.orientation), radius);
         if !(budget > 0.0) {
-            return false;
-        }
-        if self.grid() != grid.id && !grid.near_all_in(&b.lo, &b.hi, self.tracked()) {
-            return false;
+            return Hold::Broken;
         }
         let mut farthest = 0.0f64;
         for (i, x) in self.nodes() {
             let Some(now) = nodes.get(i) else {
-                return false;
+                return Hold::Broken;
             };
             farthest = farthest.max((now - x).norm());
         }
-        tilt * farthest < budget
+        if !(tilt * farthest < budget) {
+            return Hold::Broken;
+        }
+        if self.grid() == grid.id {
+            return Hold::Kept;
+        }
+        let (lo, hi) = self.asked();
+        if grid.near_all_in(&lo, &hi, self.tracked()) {
+            Hold::Regridded
+        } else {
+            Hold::Broken
+        }
     }
 }
 
@@ -683,10 +718,15 @@ impl Wall {
         let Some(grid) = grid else {
             return (self.pieces_walked(s, b, radius, None), WallFound::None);
         };
-        let kept = kept.filter(|w| FacetSet(w).holds(self, b, radius, grid));
-        let fresh = match kept {
-            Some(_) => None,
-            None => match self.facet_set(s, b, radius, grid) {
+        let kept_words = kept;
+        let hold = kept.map_or(Hold::Broken, |w| FacetSet(w).holds(self, b, radius, grid));
+        let kept = kept.filter(|_| hold == Hold::Kept);
+        let fresh = match (kept, hold) {
+            (Some(_), _) => None,
+            (None, Hold::Regridded) => {
+                Some(FacetSet(kept_words.expect("a set checked")).regridded(grid.id))
+            }
+            (None, _) => match self.facet_set(s, b, radius, grid) {
                 Some(w) => Some(w),
                 None => {
                     return (
@@ -783,6 +823,11 @@ impl Wall {
         let mut w: Vec<u32> = pose_words(&b.pos, &b.orientation, b.scale).collect();
         w.extend([band, tilt].into_iter().flat_map(split));
         w.extend([grid.id as u32, (grid.id >> 32) as u32]);
+        w.extend(
+            (0..6)
+                .map(|k| if k < 3 { blo[k] } else { bhi[k - 3] })
+                .flat_map(split),
+        );
         w.extend([
             tracked.len() as u32,
             node_ids.len() as u32,
@@ -1698,13 +1743,18 @@ mod tests {
         let r = s.radius * scale;
         let mut kept: Option<Vec<u32>> = None;
         let (mut kept_steps, mut new_steps, mut touching) = (0, 0, 0);
+        let mut grid: Option<FacetGrid> = None;
         for k in 0..steps {
             let w = wall(k);
-            let grid = FacetGrid::of(&w, r).expect("a facet wall has a grid");
+            // Kept while it fits the nodes, as the world keeps it.
+            if !(grid.as_ref()).is_some_and(|g| g.fits(&w, r)) {
+                grid = FacetGrid::of(&w, r);
+            }
+            let grid = grid.as_ref().expect("a facet wall has a grid");
             let (at, turn) = pose(k);
             let b = s.posed(&at, &turn, scale);
-            let (with, found) = w.touch_kept(s, &b, r, kept.as_deref(), Some(&grid));
-            let (fresh, _) = w.touch_kept(s, &b, r, None, Some(&grid));
+            let (with, found) = w.touch_kept(s, &b, r, kept.as_deref(), Some(grid));
+            let (fresh, _) = w.touch_kept(s, &b, r, None, Some(grid));
             let (walked, _) = w.touch_kept(s, &b, r, None, None);
             for other in [&fresh, &walked] {
                 match (&with, other) {
