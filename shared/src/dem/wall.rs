@@ -29,7 +29,9 @@
 
 use crate::dem::collision::broad::overlap as overlap_boxes;
 use crate::dem::collision::gjk::{separating_gap, Hints, Points};
-use crate::dem::collision::kept::{join, pose_of, pose_words, split, POSE_WORDS};
+use crate::dem::collision::kept::{
+    join, join_bits, pose_of, pose_words, split, split_bits, POSE_WORDS,
+};
 use crate::dem::collision::overlap::{
     faces_near_facet, overlap_behind_facet, overlap_behind_facet_faces, overlap_half_space_kept,
     overlap_half_space_within, overlap_parts, reach_along, Beyond, Overlap, WallFound,
@@ -312,8 +314,7 @@ impl FacetSet<'_> {
 
     /// The number of the grid the set was last checked with.
     fn grid(&self) -> u64 {
-        let w = &self.0[POSE_WORDS + 4..];
-        u64::from(w[0]) | u64::from(w[1]) << 32
+        join_bits(&self.0[POSE_WORDS + 4..])
     }
 
     /// The box the grid was asked about: the body's when the set was made, grown by the band.
@@ -325,7 +326,7 @@ impl FacetSet<'_> {
     /// The same set, marked as checked with grid `id`.
     fn regridded(&self, id: u64) -> Vec<u32> {
         let mut w = self.0.to_vec();
-        w[POSE_WORDS + 4..POSE_WORDS + 6].copy_from_slice(&[id as u32, (id >> 32) as u32]);
+        w[POSE_WORDS + 4..POSE_WORDS + 6].copy_from_slice(&split_bits(id));
         w
     }
 
@@ -471,9 +472,9 @@ impl Wall {
     /// [`Wall::touch`], to the bit, trying the wall set `kept` the contact made last step (a
     /// plane's contact with a large hull: [`overlap_half_space_kept`]) and handing back the
     /// set to keep, touching or not (a facet set holds for a body near the wall as well as for
-    /// one touching it, so a body that comes near keeps it until it touches). With `grid`, a facet wall's [`FacetGrid`] (made since its nodes last
-    /// moved, for bodies as large as this one at least), only the triangles near the body are
-    /// tested; without it, all of them.
+    /// one touching it, so a body that comes near keeps it until it touches). With `grid`, a
+    /// facet wall's [`FacetGrid`] (one that fits its nodes, for bodies as large as this one at
+    /// least), only the triangles near the body are tested; without it, all of them.
     pub fn touch_kept(
         &self,
         s: &Shape,
@@ -718,15 +719,11 @@ impl Wall {
         let Some(grid) = grid else {
             return (self.pieces_walked(s, b, radius, None), WallFound::None);
         };
-        let kept_words = kept;
         let hold = kept.map_or(Hold::Broken, |w| FacetSet(w).holds(self, b, radius, grid));
-        let kept = kept.filter(|_| hold == Hold::Kept);
-        let fresh = match (kept, hold) {
-            (Some(_), _) => None,
-            (None, Hold::Regridded) => {
-                Some(FacetSet(kept_words.expect("a set checked")).regridded(grid.id))
-            }
-            (None, _) => match self.facet_set(s, b, radius, grid) {
+        let fresh = match (hold, kept) {
+            (Hold::Kept, _) => None,
+            (Hold::Regridded, Some(w)) => Some(FacetSet(w).regridded(grid.id)),
+            _ => match self.facet_set(s, b, radius, grid) {
                 Some(w) => Some(w),
                 None => {
                     return (
@@ -736,7 +733,7 @@ impl Wall {
                 }
             },
         };
-        let words = kept.or(fresh.as_deref()).expect("kept or made");
+        let words = fresh.as_deref().or(kept).expect("kept or made");
         let pieces = self.set_pieces(s, b, radius, FacetSet(words));
         (pieces, fresh.map_or(WallFound::Kept, WallFound::New))
     }
@@ -763,17 +760,13 @@ impl Wall {
             let t = &triangles[k as usize];
             let q = t.map(|i| nodes[i as usize]);
             let n = (q[1] - q[0]).cross(&(q[2] - q[0]));
-            let longest = [(q[1] - q[0]), (q[2] - q[1]), (q[0] - q[2])]
-                .iter()
-                .map(|e| e.norm_squared())
-                .fold(0.0, f64::max);
             let scale = (q[1] - q[0])
                 .norm_squared()
                 .max((q[2] - q[0]).norm_squared());
             if !(n.norm() > 1e-12 * scale) {
                 return None;
             }
-            altitude = altitude.min(n.norm() / longest.sqrt());
+            altitude = altitude.min(smallest_altitude(&q, &n));
             let lo = q[0].inf(&q[1]).inf(&q[2]);
             let hi = q[0].sup(&q[1]).sup(&q[2]);
             if misses(&(lo - reach), &(hi + reach)) {
@@ -822,12 +815,8 @@ impl Wall {
         let tilt = 1.0 + 2.0 * (2.0 * radius + depth) / altitude;
         let mut w: Vec<u32> = pose_words(&b.pos, &b.orientation, b.scale).collect();
         w.extend([band, tilt].into_iter().flat_map(split));
-        w.extend([grid.id as u32, (grid.id >> 32) as u32]);
-        w.extend(
-            (0..6)
-                .map(|k| if k < 3 { blo[k] } else { bhi[k - 3] })
-                .flat_map(split),
-        );
+        w.extend(split_bits(grid.id));
+        w.extend(blo.iter().chain(bhi.iter()).flat_map(|&x| split(x)));
         w.extend([
             tracked.len() as u32,
             node_ids.len() as u32,
@@ -1096,6 +1085,16 @@ pub struct FacetGrid {
     id: u64,
 }
 
+/// The smallest altitude of triangle `q` (the one to its longest side), from its corners'
+/// cross product `cross`.
+fn smallest_altitude(q: &[Vec3; 3], cross: &Vec3) -> f64 {
+    let longest = [(q[1] - q[0]), (q[2] - q[1]), (q[0] - q[2])]
+        .iter()
+        .map(|e| e.norm_squared())
+        .fold(0.0, f64::max);
+    cross.norm() / longest.sqrt()
+}
+
 /// The box of triangle `q`'s prism `depth` deep, grown a little for round-off (bodies of
 /// bounding radius `radius` at most).
 fn prism_box(q: &[Vec3; 3], depth: f64, radius: f64) -> (Vec3, Vec3) {
@@ -1135,11 +1134,7 @@ impl FacetGrid {
             .map(|t| {
                 let q = t.map(|i| nodes[i as usize]);
                 let cross = (q[1] - q[0]).cross(&(q[2] - q[0]));
-                let longest = [(q[1] - q[0]), (q[2] - q[1]), (q[0] - q[2])]
-                    .iter()
-                    .map(|e| e.norm_squared())
-                    .fold(0.0, f64::max);
-                altitude = altitude.min(cross.norm() / longest.sqrt());
+                altitude = altitude.min(smallest_altitude(&q, &cross));
                 prism_box(&q, depth, radius)
             })
             .collect();
@@ -1198,6 +1193,14 @@ impl FacetGrid {
             altitude,
             id: NEXT_GRID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         })
+    }
+
+    /// `grid` kept while it [`FacetGrid::fits`] `wall` for bodies of bounding radius `radius`,
+    /// else made anew.
+    pub fn refresh(grid: &mut Option<FacetGrid>, wall: &Wall, radius: f64) {
+        if !(grid.as_ref()).is_some_and(|g| g.fits(wall, radius)) {
+            *grid = FacetGrid::of(wall, radius);
+        }
     }
 
     /// Whether the grid still serves `wall` for bodies of bounding radius `radius`: made for
@@ -1747,9 +1750,7 @@ mod tests {
         for k in 0..steps {
             let w = wall(k);
             // Kept while it fits the nodes, as the world keeps it.
-            if !(grid.as_ref()).is_some_and(|g| g.fits(&w, r)) {
-                grid = FacetGrid::of(&w, r);
-            }
+            FacetGrid::refresh(&mut grid, &w, r);
             let grid = grid.as_ref().expect("a facet wall has a grid");
             let (at, turn) = pose(k);
             let b = s.posed(&at, &turn, scale);

@@ -816,7 +816,7 @@ pub(crate) fn split(x: f64) -> [u32; 2] {
 }
 
 /// The two words of 64 bits, low first.
-fn split_bits(bits: u64) -> [u32; 2] {
+pub(crate) fn split_bits(bits: u64) -> [u32; 2] {
     [bits as u32, (bits >> 32) as u32]
 }
 
@@ -935,7 +935,7 @@ pub(crate) fn join(w: &[u32]) -> f64 {
 }
 
 /// The 64 bits that [`split_bits`] gave the words `w[0]`, `w[1]` of.
-fn join_bits(w: &[u32]) -> u64 {
+pub(crate) fn join_bits(w: &[u32]) -> u64 {
     u64::from(w[0]) | u64::from(w[1]) << 32
 }
 

@@ -290,9 +290,7 @@ impl World {
         let mut grids = std::mem::take(&mut self.grids);
         grids.resize_with(self.walls.len(), || None);
         for (wall, grid) in self.walls.iter().zip(&mut grids) {
-            if !(grid.as_ref()).is_some_and(|g| g.fits(wall, largest)) {
-                *grid = FacetGrid::of(wall, largest);
-            }
+            FacetGrid::refresh(grid, wall, largest);
         }
         let mut gaps = std::mem::take(&mut self.separations);
         if gaps.odometers.len() != self.bodies.len() {
@@ -506,8 +504,9 @@ impl World {
                         (Some(c), kept.map(|k| k.words()), false)
                     }
                     None => {
-                        let kept = (this.near_sets.get(&(w, i)))
-                            .filter(|_| this.keep_structures && grid.is_some());
+                        let kept = (this.keep_structures && grid.is_some())
+                            .then(|| this.near_sets.get(&(w, i)))
+                            .flatten();
                         (None, kept.map(Vec::as_slice), kept.is_some())
                     }
                 };
