@@ -43,12 +43,14 @@ fn specimen() -> World {
 /// s) of the platens' servo, its own vertical stress (the contacts', Eq. 8, which the platens
 /// hold) within 2 % of the pressure and the platens' force steady within 2 % (over the end
 /// rings' area they read 74 kPa: the sleeve sags into the voids, the section the specimen
-/// presents is smaller, and the sags push the particles along the axis too); the contact
-/// stress agrees with the boundary's mean stress within 5 %; its horizontal
-/// components are within 25 % of the confining pressure (measured 19 % low on this specimen
-/// of 12-18 mm particles in a 70 mm cylinder: the membrane sags into the voids between them
-/// and its own tension carries that part of the pressure, 5 % on the quick 288-particle
-/// specimen); the volumetric strain drifts by less than 1e-3.
+/// presents is smaller, and the sags push the particles along the axis too); the contacts'
+/// horizontal stress is within 5 % of what the membrane's contacts push on the particles
+/// (equilibrium at the boundary), and within 25 % of the confining pressure (measured 19-22 %
+/// low on this specimen of 12-18 mm particles in a 70 mm cylinder: the membrane sags into the
+/// voids between them and its own tension carries that part of the pressure, 5 % on the quick
+/// 288-particle specimen); the volumetric strain drifts by less than 1e-3. (Eq. 20's mean
+/// stress, with the cell pressure as sigma_3, leaves out the sleeve's share: 6 % above the
+/// contacts' p here.)
 #[test]
 fn a_hydrostatic_hold_stays_at_the_pressure_on_every_boundary() {
     let params = Params::default();
@@ -58,8 +60,8 @@ fn a_hydrostatic_hold_stays_at_the_pressure_on_every_boundary() {
     t.hold(20_000);
     let after = t.measure();
     eprintln!(
-        "hold: platens {:?} Pa, contact p {:.0} Pa (boundary {:.0}), stress {:?}, eps_v {:.2e}",
-        after.platens, after.p, after.p_boundary, after.stress, after.volumetric_strain
+        "hold: platens {:?} Pa, contact p {:.0} Pa (boundary {:.0}), stress {:?}, membrane {:.0} Pa, eps_v {:.2e}",
+        after.platens, after.p, after.p_boundary, after.stress, after.membrane_stress, after.volumetric_strain
     );
     let p = params.pressure;
     let vertical = after.stress[2];
@@ -70,7 +72,12 @@ fn a_hydrostatic_hold_stays_at_the_pressure_on_every_boundary() {
     for (s, s0) in after.platens.iter().zip(before.platens) {
         assert!((s - s0).abs() < 0.02 * s0, "platen from {s0} to {s} Pa");
     }
-    assert!((after.p - after.p_boundary).abs() < 0.05 * after.p_boundary);
+    let horizontal = 0.5 * (after.stress[0] + after.stress[1]);
+    assert!(
+        (horizontal - after.membrane_stress).abs() < 0.05 * after.membrane_stress,
+        "horizontal contact stress {horizontal} Pa, membrane's contacts {} Pa",
+        after.membrane_stress
+    );
     for s in &after.stress[..2] {
         assert!((s - p).abs() < 0.25 * p, "horizontal contact stress {s} Pa");
     }
@@ -209,3 +216,4 @@ fn a_corner_pressed_into_the_membrane_between_its_nodes_is_held() {
         "the corner passed the membrane"
     );
 }
+

@@ -96,6 +96,16 @@ impl Body {
         self.velocity_with(&self.omega(), p)
     }
 
+    /// The angular velocity `omega` ([`Body::omega`], as computed already) the body turns
+    /// at: none for a fixed body.
+    fn spin_with(&self, omega: &Vec3) -> Vec3 {
+        if self.fixed {
+            Vec3::zeros()
+        } else {
+            *omega
+        }
+    }
+
     /// [`Body::velocity_at`] with the body's angular velocity `omega` ([`Body::omega`]) as
     /// computed already.
     fn velocity_with(&self, omega: &Vec3, p: &Vec3) -> Vec3 {

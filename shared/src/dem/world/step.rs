@@ -172,8 +172,9 @@ impl World {
     }
 
     /// Contact forces of one touching pair from its overlap, under `material`'s stiffness.
-    /// `omega`: the angular velocity of the key's body; `last`: the contact of `key` last
-    /// step, if any.
+    /// `omega`: the angular velocity of the key's body; `va`, `omega_a`: the partner's
+    /// velocity at the contact point and its angular velocity (a wall's: none); `last`: the
+    /// contact of `key` last step, if any.
     #[allow(clippy::too_many_arguments)]
     fn touch(
         &self,
@@ -182,14 +183,15 @@ impl World {
         omega: &Vec3,
         last: Option<&Contact>,
         o: &Overlap,
-        va: Vec3,
+        (va, omega_a): (Vec3, Vec3),
         friction: f64,
     ) -> (Contact, Touch) {
         let b = &self.bodies[key.1 as usize];
         let (n, depth) = o.normal_depth();
         let point = o.centroid;
         let rel = b.velocity_with(omega, &point) - va;
-        let law = law::linear(material, self.dt, n, depth, point, rel, last, friction);
+        let spin = 0.5 * n.dot(&(b.spin_with(omega) + omega_a));
+        let law = law::linear(material, self.dt, n, depth, point, rel, spin, last, friction);
         let touch = Touch {
             force: law.force,
             point,
@@ -416,7 +418,7 @@ impl World {
                 &omegas[j as usize],
                 last,
                 &o,
-                va,
+                (va, bi.spin_with(&omegas[i as usize])),
                 self.material.friction,
             );
             // `at` is still where the seek left it: the contact's place, when it had one.
@@ -535,7 +537,7 @@ impl World {
                     &omegas[i as usize],
                     last,
                     &hit.overlap,
-                    hit.velocity,
+                    (hit.velocity, Vec3::zeros()),
                     this.material.wall_friction,
                 );
                 let last_force =
