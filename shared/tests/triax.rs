@@ -10,7 +10,7 @@ use shared::dem::world::World;
 use shared::geometry::mesh::cube;
 use shared::geometry::polygen;
 use shared::lab::pack;
-use shared::lab::triax::{cylinder_membrane, Event, Params, Triax};
+use shared::lab::triax::{cylinder_membrane, Boundary, Event, Measure, Params, Triax};
 use shared::math::Vec3;
 
 /// A small specimen of the nine sharp I_P templates (36 particles of 12-18 mm in a 70 x 140
@@ -39,6 +39,21 @@ fn specimen() -> World {
     w
 }
 
+/// The specimen consolidated under `params`, then held for 20 000 steps of the servos: its
+/// measurements before and after the hold.
+fn held(params: &Params) -> (Measure, Measure) {
+    let mut t = Triax::new(specimen(), params.clone()).unwrap();
+    t.consolidate(1_000_000, 0, &mut |_: Event| {}).unwrap();
+    let before = t.measure();
+    t.hold(20_000);
+    let after = t.measure();
+    eprintln!(
+        "hold ({:?}): platens {:?} Pa, lateral boundary {:.0} Pa, contact p {:.0} Pa (boundary {:.0}), stress {:?}, eps_v {:.2e}",
+        params.boundary, after.platens, after.membrane_stress, after.p, after.p_boundary, after.stress, after.volumetric_strain
+    );
+    (before, after)
+}
+
 /// With no axial loading the consolidated specimen stays at 100 kPa: for 20 000 steps (0.035
 /// s) of the platens' servo, its own vertical stress (the contacts', Eq. 8, which the platens
 /// hold) within 2 % of the pressure and the platens' force steady within 2 % (over the end
@@ -54,15 +69,7 @@ fn specimen() -> World {
 #[test]
 fn a_hydrostatic_hold_stays_at_the_pressure_on_every_boundary() {
     let params = Params::default();
-    let mut t = Triax::new(specimen(), params.clone()).unwrap();
-    t.consolidate(1_000_000, 0, &mut |_: Event| {}).unwrap();
-    let before = t.measure();
-    t.hold(20_000);
-    let after = t.measure();
-    eprintln!(
-        "hold: platens {:?} Pa, contact p {:.0} Pa (boundary {:.0}), stress {:?}, membrane {:.0} Pa, eps_v {:.2e}",
-        after.platens, after.p, after.p_boundary, after.stress, after.membrane_stress, after.volumetric_strain
-    );
+    let (before, after) = held(&params);
     let p = params.pressure;
     let vertical = after.stress[2];
     assert!(
@@ -217,3 +224,75 @@ fn a_corner_pressed_into_the_membrane_between_its_nodes_is_held() {
     );
 }
 
+/// The rigid boundary (the pack's cylinder, its radius on a servo to the pressure) holds the
+/// consolidated specimen at 100 kPa on every boundary: for 20 000 steps of the servos without
+/// loading, the platens' and the cylinder's stresses within 2 % of the pressure, the
+/// contacts' vertical stress within 2 % and their mean stress within 5 % of the boundary's,
+/// and the volume within 1e-3.
+#[test]
+fn a_hydrostatic_hold_on_the_rigid_boundary_stays_at_the_pressure() {
+    let params = Params {
+        boundary: Boundary::Rigid,
+        ..Params::default()
+    };
+    let (before, after) = held(&params);
+    let p = params.pressure;
+    for s in after.platens.iter().chain([&after.membrane_stress]) {
+        assert!((s - p).abs() < 0.02 * p, "boundary stress {s} Pa");
+    }
+    assert!(
+        (after.stress[2] - p).abs() < 0.02 * p,
+        "vertical {:?}",
+        after.stress
+    );
+    assert!((after.p - after.p_boundary).abs() < 0.05 * after.p_boundary);
+    let drift = (before.volume / after.volume).ln();
+    assert!(drift.abs() < 1e-3, "volumetric strain drifted by {drift:e}");
+    assert_eq!(after.radius_mean, after.radius_max);
+}
+
+/// The sharp specimen deep into loading on the rigid boundary: 10 % of axial strain at a
+/// fast rate, every particle checked inside the cylinder and between the platens at every
+/// measurement, the cylinder's stress held at the pressure (each measurement within 10 %, their
+/// mean within 2 %) while the specimen dilates and the cylinder opens.
+#[test]
+fn a_sharp_specimen_stays_inside_the_rigid_boundary_on_its_servo() {
+    let params = Params {
+        boundary: Boundary::Rigid,
+        final_strain: 0.1,
+        rate: 2.0,
+        every: 0.005,
+        frame_every: 0.05,
+        ..Params::default()
+    };
+    let mut t = Triax::new(specimen(), params.clone()).unwrap();
+    t.consolidate(1_000_000, 0, &mut |_: Event| {}).unwrap();
+    let mut series = Vec::new();
+    t.load(None, &mut |e: Event| {
+        if let Event::Measure(m) = e {
+            series.push(m.clone());
+        }
+    })
+    .unwrap();
+    let (first, last) = (&series[0], series.last().unwrap());
+    eprintln!(
+        "rigid, at axial strain {:.3}: q {:.0} Pa, eps_v {:.4}, radius {:.5} -> {:.5} m",
+        last.axial_strain,
+        last.q_boundary,
+        last.volumetric_strain,
+        first.radius_max,
+        last.radius_max
+    );
+    assert!(last.axial_strain >= 0.1);
+    assert!(last.q_boundary > 0.0);
+    let p = params.pressure;
+    let lateral: Vec<f64> = series[1..].iter().map(|m| m.membrane_stress).collect();
+    for s in &lateral {
+        assert!((s - p).abs() < 0.1 * p, "cylinder at {s} Pa");
+    }
+    let mean = lateral.iter().sum::<f64>() / lateral.len() as f64;
+    assert!((mean - p).abs() < 0.02 * p, "cylinder's mean {mean} Pa");
+    // It dilates, and the servo opens the cylinder to let it.
+    assert!(last.volumetric_strain < 0.0);
+    assert!(last.radius_max > first.radius_max);
+}

@@ -435,6 +435,13 @@ fn triax_rejects_what_is_not_a_cylindrical_specimen_and_nonsense_options() {
         rejects(&[flag, value], specimen(), 2, &[flag]);
     }
     rejects(&["--rate", "fast"], specimen(), 2, &["invalid value"]);
+    rejects(
+        &["--boundary", "sleeve"],
+        specimen(),
+        2,
+        &["--boundary", "membrane or rigid"],
+    );
+    rejects(&["--boundary", "rigid"], &boxed, 1, &["a box"]);
     // Wall friction: the membrane's contacts have no shear law.
     let rough = String::from_utf8_lossy(specimen())
         .replace("\"wall_friction\":0.0", "\"wall_friction\":0.2");
@@ -508,4 +515,60 @@ fn consolidation_leaves_an_isotropic_start_at_quick_scale() {
     assert!((s[2] - 1e5).abs() < 0.02e5, "sigma_zz {} Pa", s[2]);
     assert!(diagonal / p < 0.03, "the diagonal's q/p {}", diagonal / p);
     assert!(ratio < 0.1, "q/p {ratio}");
+}
+
+/// The rigid boundary through the tool: the pack's cylinder stays (no membrane in the settings
+/// or the frames), its servo holds its contacts' stress at the pressure (every measurement of
+/// the short test within 10 %), the frames run on in dem, a run stopped at a frame and resumed
+/// writes the bytes of the run in one go, 1 and 2 threads the same; a stream whose settings
+/// name the other boundary than its walls is refused.
+#[test]
+fn the_rigid_boundary_holds_the_pressure_resumes_to_the_same_bytes_and_refuses_a_mismatch() {
+    let mut args = SHORT.to_vec();
+    args.extend(["--boundary", "rigid"]);
+    let whole = ok("triax", &args, specimen());
+    let recs = records(&whole);
+    assert_eq!(recs[0]["params"]["boundary"], "rigid");
+    assert_eq!(recs[0]["nodes"], 0);
+    let measures: Vec<&serde_json::Value> =
+        recs.iter().filter(|r| r["type"] == "measure").collect();
+    assert_eq!(measures.len(), 16);
+    for m in &measures {
+        let lateral = m["membrane_stress"].as_f64().unwrap();
+        assert!((lateral - 1e5).abs() < 0.1e5, "cylinder's stress {lateral}");
+        assert_eq!(m["radius_mean"], m["radius_max"]);
+    }
+    let q_end = measures.last().unwrap()["q_boundary"].as_f64().unwrap();
+    assert!(q_end > 1e4, "q at 2 %: {q_end}");
+    assert!(!String::from_utf8_lossy(&whole).contains("\"membrane\":{"));
+    ok("dem", &["--frame", "last", "--steps", "20"], &whole);
+    let mut stop = args.clone();
+    stop.extend(["--stop-at", "0.01"]);
+    let part = ok("triax", &stop, specimen());
+    assert!(part.len() < whole.len());
+    let mut joined = part.clone();
+    joined.extend(ok("triax", &[], &part));
+    assert!(
+        joined == whole,
+        "stopped and resumed differs from the run in one go"
+    );
+    let one = run_env("triax", &args, specimen(), &[("RAYON_NUM_THREADS", "1")]);
+    assert!(one.status.success());
+    assert!(one.stdout == whole, "1 thread differs from 2");
+    // Settings that name the other boundary than the frames' walls.
+    let text = String::from_utf8_lossy(&part);
+    let swapped = text.replacen("\"boundary\":\"rigid\"", "\"boundary\":\"membrane\"", 1);
+    fails("triax", &[], swapped.as_bytes(), 1, &["not a membrane"]);
+    let mut stop = SHORT.to_vec();
+    stop.extend(["--stop-at", "0.01"]);
+    let membrane = ok("triax", &stop, specimen());
+    let membrane = String::from_utf8_lossy(&membrane);
+    let swapped = membrane.replacen("\"boundary\":\"membrane\"", "\"boundary\":\"rigid\"", 1);
+    fails(
+        "triax",
+        &[],
+        swapped.as_bytes(),
+        1,
+        &["rigid boundary", "not a cylinder"],
+    );
 }

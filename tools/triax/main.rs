@@ -7,7 +7,8 @@ use shared::dem::io::state::{self, Item, StateStream};
 use shared::dem::io::vtk::Snapshots;
 use shared::dem::world::World;
 use shared::lab::triax::{
-    self, Event, Measure, Params, Progress, Triax, TriaxError, BALANCE_WINDOW, OPENING, RAMP,
+    self, Boundary, Event, Measure, Params, Progress, Triax, TriaxError, BALANCE_WINDOW, OPENING,
+    RAMP,
 };
 use std::io::{BufRead, Write};
 use std::process::ExitCode;
@@ -18,6 +19,7 @@ Examples:
   triax < ab2-spec.jsonl > ab2-triax.jsonl                       (100 kPa, to 15 % axial strain)
   triax --summary ab2.json --csv ab2.csv < ab2-spec.jsonl > ab2-triax.jsonl
   triax --pressure 2e5 --rate 0.2 --final-strain 0.2 < spec.jsonl > run.jsonl
+  triax --boundary rigid < spec.jsonl > rigid.jsonl      (the rigid cylinder on a servo)
   triax --stop-at 0.05 < spec.jsonl > part.jsonl && triax < part.jsonl > rest.jsonl
       (cat part.jsonl rest.jsonl: the same bytes as the run in one go)
   pipelines/triax-resume.sh spec.jsonl run.jsonl        (a killed run goes on from its last
@@ -40,7 +42,8 @@ The test (docs/models/triax.md): the cylinder becomes a membrane (--membrane-you
 smallest particle) sealed to the platens, under --pressure on its outside; the platens servo to
 the same pressure until the specimen is in equilibrium (isotropic consolidation); then they
 approach each other at the constant logarithmic strain rate --rate, the confining pressure held,
-to --final-strain. Strains: axial ln(H0 / H), volumetric ln(V0 / V) of the volume the membrane
+to --final-strain. With --boundary rigid the pack's cylinder stays instead of the membrane, its
+radius on a servo that holds its contacts' stress at --pressure. Strains: axial ln(H0 / H), volumetric ln(V0 / V) of the volume the membrane
 and the platens enclose, compression positive; stresses in Pa, compression positive.";
 
 /// The drained triaxial test of a pack specimen, with a flexible membrane
@@ -50,6 +53,10 @@ struct Cli {
     /// Confining pressure, Pa
     #[arg(long, default_value_t = 1e5, allow_negative_numbers = true)]
     pressure: f64,
+    /// The lateral boundary: membrane (the paper's flexible sleeve) or rigid (the cylinder,
+    /// its radius on a servo to --pressure)
+    #[arg(long, default_value = "membrane")]
+    boundary: Boundary,
     /// Axial strain ln(H0 / H) at which loading ends
     #[arg(long, default_value_t = 0.15, allow_negative_numbers = true)]
     final_strain: f64,
@@ -277,6 +284,7 @@ const VERSION: u32 = 1;
 fn params_of(args: &Cli) -> Params {
     Params {
         pressure: args.pressure,
+        boundary: args.boundary,
         final_strain: args.final_strain,
         rate: args.rate,
         young: args.membrane_young,
@@ -527,6 +535,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                     },
                     Some(m),
                 ) => (nodes.len(), triangles.len(), m.sheet.node_mass),
+                _ if test.params.boundary == Boundary::Rigid => (0, 0, 0.0),
                 _ => bail!("the membrane was not made"),
             };
             let settings = Settings {
@@ -541,8 +550,15 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 particles: test.world.bodies.len(),
             };
             writeln!(out, "{}", serde_json::to_string(&settings)?)?;
+            let boundary = if nodes == 0 {
+                "the rigid cylinder on its servo".to_string()
+            } else {
+                format!(
+                    "membrane of {nodes} nodes ({node_mass:.3e} kg each), {triangles} triangles"
+                )
+            };
             say(format!(
-                "{} particles; membrane of {nodes} nodes ({node_mass:.3e} kg each), {triangles} triangles; time step {:.4e} s; consolidating at {} Pa on {}",
+                "{} particles; {boundary}; time step {:.4e} s; consolidating at {} Pa on {}",
                 test.world.bodies.len(),
                 test.world.dt,
                 test.params.pressure,

@@ -43,8 +43,7 @@ pub fn servo(
     counts: &[usize],
     common: Option<&mut f64>,
 ) -> Vec<f64> {
-    let (kn, dt) = (w.material.kn, w.dt);
-    let gain = |k: usize| p.gain * geometry[k].area / (kn * counts[k].max(1) as f64 * dt);
+    let gain = |k: usize| wall_gain(w, p, &geometry[k], counts[k]);
     if let Some(integral) = common {
         let error = p.pressure - mean_stress(geometry, stresses);
         let g = (0..geometry.len())
@@ -81,6 +80,13 @@ pub fn servo(
             })
             .collect()
     }
+}
+
+/// PFC's servo gain of a wall (m/s per Pa): `gain A / (kn N dt)`, `N` its contacts (at
+/// least 1) and `A` its area: the speed that closes `gain` of the stress error in a step on the
+/// wall's own contacts' springs.
+pub fn wall_gain(w: &World, p: &ServoLaw, geometry: &WallGeometry, count: usize) -> f64 {
+    p.gain * geometry.area / (w.material.kn * count.max(1) as f64 * w.dt)
 }
 
 /// Moves the walls inward at `speeds` (see [`servo`]).

@@ -5,7 +5,9 @@
 //!    triangulated cylinder, its facets no larger than `edge` (by default the smallest
 //!    particle's size), just outside the cylinder's facets (its chords on the cylinder's
 //!    circle, so no particle overlaps it), its end rings sealed to the platens, the
-//!    confining pressure on its outer side.
+//!    confining pressure on its outer side. With the rigid boundary ([`Boundary::Rigid`]) the
+//!    cylinder stays, and PFC's servo moves its radius each step so that its contacts' outward
+//!    stress is the pressure.
 //! 2. **Consolidation.** The platens follow PFC's servo (without a rest band) so that the
 //!    specimen's own vertical stress is the pressure the membrane holds on the side
 //!    ([`Triax::held_stresses`]), until, at the end of a block of `balance_window` steps, both
@@ -29,10 +31,10 @@ use crate::dem::parallel::on_pool;
 use crate::dem::wall::{Wall, WallKind};
 use crate::dem::world::World;
 use crate::geometry::mass::equivalent_diameter;
-use crate::lab::boundary::{container, Section, WallGeometry, BOTTOM, SIDE, TOP};
+use crate::lab::boundary::{container, Bounds, Section, WallGeometry, BOTTOM, SIDE, TOP};
 use crate::lab::inertia::scale_inertia;
-use crate::lab::servo::{servo, set_speeds, ServoLaw};
-use crate::math::{basis, Vec3};
+use crate::lab::servo::{servo, set_speeds, wall_gain, ServoLaw};
+use crate::math::{basis, cube, Vec3};
 use crate::micro::stress::{contact_stress, coordination, invariants, symmetric_components};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -50,12 +52,41 @@ fn default_balance_window() -> u64 {
     BALANCE_WINDOW
 }
 
+/// The specimen's lateral boundary.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Boundary {
+    /// A flexible membrane under the cell pressure (the paper's).
+    #[default]
+    Membrane,
+    /// The pack's rigid cylinder, its radius on PFC's servo so that its contacts' outward
+    /// stress is the cell pressure (PFC's and Yade's usual triaxial test).
+    Rigid,
+}
+
+impl std::str::FromStr for Boundary {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Boundary, String> {
+        match s {
+            "membrane" => Ok(Boundary::Membrane),
+            "rigid" => Ok(Boundary::Rigid),
+            _ => Err(format!("'{s}' is not a boundary: membrane or rigid")),
+        }
+    }
+}
+
 /// How to run the test (SI units). Defaults: the paper's.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Params {
-    /// Confining pressure, Pa (on the membrane, and on the platens during consolidation).
+    /// Confining pressure, Pa (on the lateral boundary, and on the platens during
+    /// consolidation).
     pub pressure: f64,
+    /// The lateral boundary (absent, as in streams written before it was a setting: the
+    /// membrane). The membrane's settings below are unused with the rigid one.
+    #[serde(default)]
+    pub boundary: Boundary,
     /// Axial strain `ln(H0 / H)` at which loading ends.
     pub final_strain: f64,
     /// Axial strain rate during loading, 1/s.
@@ -114,6 +145,7 @@ impl Default for Params {
     fn default() -> Self {
         Params {
             pressure: 1e5,
+            boundary: Boundary::Membrane,
             final_strain: 0.15,
             rate: 0.25,
             young: 7.8e6,
@@ -161,7 +193,7 @@ pub enum TriaxError {
         unbalanced: f64,
     },
     #[error(
-        "a particle left the membrane at step {step}: body {body} is {distance:.4e} m outside"
+        "a particle left the specimen's boundary at step {step}: body {body} is {distance:.4e} m outside"
     )]
     Escaped {
         step: u64,
@@ -265,8 +297,23 @@ impl Params {
     }
 }
 
+/// The rigid boundary's servo's integral time, steps ([`Triax::servo_cylinder`]).
+const RIGID_INTEGRAL_STEPS: f64 = 300.0;
+
 /// The membrane of the test: the facet wall's index among the walls.
 pub const MEMBRANE: usize = SIDE;
+
+/// The particles' mean equivalent diameter (m) and their solid volume (m^3).
+fn sizes(world: &World) -> (f64, f64) {
+    let n = world.bodies.len().max(1) as f64;
+    let (mut size, mut solid) = (0.0, 0.0);
+    for b in &world.bodies {
+        let volume = world.shapes[b.shape as usize].volume;
+        size += equivalent_diameter(volume) * b.scale;
+        solid += volume * cube(b.scale);
+    }
+    (size / n, solid)
+}
 
 /// Nodes and triangles of a cylindrical membrane about the axis through `point` along `axis`:
 /// `segments` nodes on a circle of `radius` (at a cylinder wall's corner angles: the first at
@@ -352,6 +399,9 @@ pub struct Progress {
     /// [`Params::consolidation_damping`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub damping: Option<f64>,
+    /// The rigid boundary's servo's integral term, Pa (absent with a membrane).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lateral_integral: Option<f64>,
 }
 
 /// What the test measures, every `every` of axial strain (SI units, compression positive).
@@ -386,13 +436,15 @@ pub struct Measure {
     pub ratio: f64,
     /// `p` from the particle pairs alone.
     pub p_pairs: f64,
-    /// The membrane's contacts' outward radial force over its area, Pa: the confining pressure
-    /// less what the membrane's own tension carries.
+    /// The lateral boundary's contacts' outward radial force over its area, Pa: on the
+    /// membrane, the confining pressure less what its own tension carries; on the rigid
+    /// boundary, what its servo holds at the pressure.
     pub membrane_stress: f64,
     /// Particle-particle contacts x 2 over particles, and without rattlers.
     pub coordination: f64,
     pub mechanical_coordination: f64,
-    /// The membrane's free nodes' mean and largest distance from the axis, m.
+    /// The membrane's free nodes' mean and largest distance from the axis, m (the rigid
+    /// boundary's radius, both).
     pub radius_mean: f64,
     pub radius_max: f64,
     /// `rate d sqrt(rho / p)`: `d` the mean particle size, `rho` the bodies' mass (scaled,
@@ -434,8 +486,8 @@ pub enum Event<'a> {
 pub const LOADING_REPORT: u64 = 100;
 
 impl Triax {
-    /// The test on a pack specimen: the cylinder swapped for the membrane, inertia scaled, the
-    /// time step set. Not yet consolidated.
+    /// The test on a pack specimen: the cylinder swapped for the membrane (or kept, on its
+    /// servo, as the rigid boundary), inertia scaled, the time step set. Not yet consolidated.
     pub fn new(mut world: World, params: Params) -> Result<Triax, TriaxError> {
         params.check()?;
         let bounds = container(&world)
@@ -448,6 +500,9 @@ impl Triax {
         };
         if world.bodies.is_empty() {
             return Err(TriaxError::NotCylinder("no particles".into()));
+        }
+        if params.boundary == Boundary::Rigid {
+            return Triax::started(world, params, [Vec::new(), Vec::new()]);
         }
         if world.material.wall_friction > 0.0 {
             return Err(TriaxError::Membrane(format!(
@@ -532,17 +587,31 @@ impl Triax {
         let mut wall = Wall::facets(nodes, triangles);
         wall.membrane = Some(Box::new(membrane));
         world.walls[MEMBRANE] = wall;
+        Triax::started(world, params, [bottom, top])
+    }
+
+    /// The test on its walls (inertia scaled already, for the membrane's nodes' mass): the
+    /// walls at rest, the time step set, consolidation to come.
+    fn started(
+        mut world: World,
+        params: Params,
+        rings: [Vec<u32>; 2],
+    ) -> Result<Triax, TriaxError> {
+        if params.boundary == Boundary::Rigid && params.inertia_scaling {
+            scale_inertia(&mut world);
+        }
         for w in &mut world.walls {
             w.velocity = Vec3::zeros();
+            if let WallKind::Cylinder { radial_rate, .. } = &mut w.kind {
+                *radial_rate = 0.0;
+            }
         }
         world.dt = world.time_step(params.safety)?;
-        let solid = (world.bodies.iter())
-            .map(|b| world.shapes[b.shape as usize].volume * b.scale.powi(3))
-            .sum();
+        let (size, solid) = sizes(&world);
         Ok(Triax {
-            size: sizes.iter().sum::<f64>() / sizes.len() as f64,
+            size,
             solid,
-            rings: [bottom, top],
+            rings,
             progress: Progress {
                 phase: "consolidation".into(),
                 height0: 0.0,
@@ -552,6 +621,7 @@ impl Triax {
                 start_step: world.step,
                 consolidation_steps: None,
                 damping: None,
+                lateral_integral: None,
             },
             world,
             params,
@@ -562,6 +632,25 @@ impl Triax {
     pub fn resume(world: World, params: Params, progress: Progress) -> Result<Triax, TriaxError> {
         params.check()?;
         let not = |why: &str| TriaxError::NotTriax(why.into());
+        if world.bodies.is_empty() {
+            return Err(not("no particles"));
+        }
+        if params.boundary == Boundary::Rigid {
+            let Some(WallKind::Cylinder { .. }) = world.walls.get(SIDE).map(|w| &w.kind) else {
+                return Err(not(
+                    "its settings say a rigid boundary, and wall 2 is not a cylinder",
+                ));
+            };
+            let (size, solid) = sizes(&world);
+            return Ok(Triax {
+                size,
+                solid,
+                rings: [Vec::new(), Vec::new()],
+                progress,
+                world,
+                params,
+            });
+        }
         let (WallKind::Facets { nodes, .. }, Some(m)) = (
             &world
                 .walls
@@ -582,17 +671,9 @@ impl Triax {
         if rings.iter().any(|r| r.len() < 3) || nodes.is_empty() {
             return Err(not("the membrane's ends are not sealed to the platens"));
         }
-        let sizes: Vec<f64> = (world.bodies.iter())
-            .map(|b| equivalent_diameter(world.shapes[b.shape as usize].volume) * b.scale)
-            .collect();
-        if sizes.is_empty() {
-            return Err(not("no particles"));
-        }
-        let solid = (world.bodies.iter())
-            .map(|b| world.shapes[b.shape as usize].volume * b.scale.powi(3))
-            .sum();
+        let (size, solid) = sizes(&world);
         Ok(Triax {
-            size: sizes.iter().sum::<f64>() / sizes.len() as f64,
+            size,
             solid,
             rings,
             progress,
@@ -617,8 +698,37 @@ impl Triax {
         }
     }
 
-    /// The area of the membrane's end `k` (0 bottom, 1 top): its ring's polygon, seen along z.
+    /// The rigid boundary's radius and facets (`None`: a membrane).
+    fn cylinder(&self) -> Option<(f64, u32)> {
+        match (self.params.boundary, &self.world.walls[SIDE].kind) {
+            (
+                Boundary::Rigid,
+                WallKind::Cylinder {
+                    radius, segments, ..
+                },
+            ) => Some((*radius, *segments)),
+            _ => None,
+        }
+    }
+
+    /// The rigid boundary's cross-section, its facet polygon's, and the container it makes
+    /// with the platens.
+    fn rigid_bounds(&self) -> Option<Bounds> {
+        let (radius, segments) = self.cylinder()?;
+        let [bottom, top] = self.platens();
+        Some(Bounds {
+            section: Section::Circle { radius, segments },
+            bottom,
+            top,
+        })
+    }
+
+    /// The area of the specimen's end `k` (0 bottom, 1 top): the membrane's ring's polygon seen
+    /// along z, or the rigid boundary's section.
     fn end_area(&self, k: usize) -> f64 {
+        if let Some(b) = self.rigid_bounds() {
+            return b.area();
+        }
         let nodes = self.nodes();
         let ring = &self.rings[k];
         let n = ring.len();
@@ -635,6 +745,9 @@ impl Triax {
     /// ring polygon closed by a fan about its centroid, by the divergence theorem (exact for
     /// the polyhedron they bound).
     pub fn volume(&self) -> f64 {
+        if let Some(b) = self.rigid_bounds() {
+            return b.area() * b.height();
+        }
         let WallKind::Facets {
             nodes, triangles, ..
         } = &self.world.walls[MEMBRANE].kind
@@ -734,10 +847,15 @@ impl Triax {
         let (p, q) = invariants(&full);
         let (p_pairs, _) = invariants(&pairs);
         let (coordination, mechanical_coordination) = coordination(w);
-        // The membrane: its contacts' outward radial push over its area, and its radius.
-        let (mut push, mut area) = (0.0, 0.0);
-        let mut radii = Vec::new();
-        if let WallKind::Facets {
+        // The lateral boundary: its contacts' outward radial push over its area, and its radius.
+        let (push, _) = self.lateral_push();
+        let (mut area, mut radii) = (0.0, Vec::new());
+        if let Some(b) = self.rigid_bounds() {
+            area = b.perimeter() * b.height();
+            if let Section::Circle { radius, .. } = b.section {
+                radii.push(radius);
+            }
+        } else if let WallKind::Facets {
             nodes, triangles, ..
         } = &w.walls[MEMBRANE].kind
         {
@@ -752,17 +870,6 @@ impl Triax {
                 .filter(|(i, _)| m.is_some_and(|m| m.pin_of(*i).is_none()))
                 .map(|(_, x)| x.xy().norm())
                 .collect();
-        }
-        let first = w.contacts.lower_bound(&(Partner::Wall(MEMBRANE as u32), 0));
-        for (&(partner, _), c) in w.contacts.iter().skip(first) {
-            if partner != Partner::Wall(MEMBRANE as u32) {
-                break;
-            }
-            let out = Vec3::new(c.point.x, c.point.y, 0.0);
-            let len = out.norm();
-            if len > 0.0 {
-                push += (c.normal * c.normal_force + c.shear).dot(&out) * -1.0 / len;
-            }
         }
         let mass: f64 = w.bodies.iter().map(|b| b.mass).sum();
         let density = mass / self.solid;
@@ -798,6 +905,73 @@ impl Triax {
         }
     }
 
+    /// The lateral boundary's contacts' outward radial force (N) and their number.
+    fn lateral_push(&self) -> (f64, usize) {
+        let w = &self.world;
+        let (mut push, mut count) = (0.0, 0);
+        let first = w.contacts.lower_bound(&(Partner::Wall(SIDE as u32), 0));
+        for (&(partner, _), c) in w.contacts.iter().skip(first) {
+            if partner != Partner::Wall(SIDE as u32) {
+                break;
+            }
+            let out = Vec3::new(c.point.x, c.point.y, 0.0);
+            let len = out.norm();
+            if len > 0.0 {
+                push += (c.normal * c.normal_force + c.shear).dot(&out) * -1.0 / len;
+            }
+            count += 1;
+        }
+        (push, count)
+    }
+
+    /// The rigid boundary's stress (its contacts' outward push over its area, Pa) and its
+    /// contacts; `None` with a membrane.
+    fn rigid_stress(&self) -> Option<(f64, usize)> {
+        let b = self.rigid_bounds()?;
+        let (push, count) = self.lateral_push();
+        Some((push / (b.perimeter() * b.height()), count))
+    }
+
+    /// Stops the walls: the platens and the rigid boundary's radius.
+    fn stop_walls(&mut self) {
+        set_speeds(&mut self.world, &[0.0, 0.0]);
+        if let WallKind::Cylinder { radial_rate, .. } = &mut self.world.walls[SIDE].kind {
+            *radial_rate = 0.0;
+        }
+    }
+
+    /// The rigid boundary's servo for this step: PFC's for a wall (its stress the outward
+    /// push over its area) with integral action, so that a specimen dilating at a steady rate
+    /// is followed without a steady error (PFC's proportional law alone lags by the error that
+    /// makes the speed: 12 % of the pressure on a 36-particle specimen at 2 /s). The speed
+    /// inward is `g (e + I)`, `g` the wall's gain ([`wall_gain`]), `e` the pressure less the
+    /// stress, and `I` grows by `e / RIGID_INTEGRAL_STEPS` each step while the speed is below
+    /// its cap; it is set as the radius's rate. Nothing with a membrane.
+    fn servo_cylinder(&mut self, law: &ServoLaw) {
+        let (Some(b), Some((stress, count))) = (self.rigid_bounds(), self.rigid_stress()) else {
+            return;
+        };
+        let Section::Circle { radius, .. } = b.section else {
+            return;
+        };
+        let geometry = WallGeometry {
+            area: b.perimeter() * b.height(),
+            half: radius,
+            weight: 1.0,
+        };
+        let g = wall_gain(&self.world, law, &geometry, count);
+        let cap = law.max_strain_rate * radius;
+        let error = law.pressure - stress;
+        let integral = self.progress.lateral_integral.get_or_insert(0.0);
+        let wanted = g * (error + *integral);
+        if wanted.abs() < cap {
+            *integral += error / RIGID_INTEGRAL_STEPS;
+        }
+        if let WallKind::Cylinder { radial_rate, .. } = &mut self.world.walls[SIDE].kind {
+            *radial_rate = -wanted.clamp(-cap, cap);
+        }
+    }
+
     /// The platens' servo law: PFC's, to the pressure, each platen on its own, without a rest
     /// band (a platen that rested within the tolerance and started again at its edge sent a
     /// jolt through the specimen each time: the unbalanced ratio rose tenfold).
@@ -828,6 +1002,7 @@ impl Triax {
             .collect();
         let speeds = servo(&self.world, law, &geometry, &stresses, &counts, None);
         set_speeds(&mut self.world, &speeds);
+        self.servo_cylinder(law);
         self.world.step();
     }
 
@@ -887,9 +1062,11 @@ impl Triax {
                 (s - self.params.pressure).abs() <= self.params.tolerance * self.params.pressure
             };
             // A resumed run starts at a block's end with no block behind it: it does not end.
+            let lateral = self.rigid_stress().map(|(s, _)| s);
             if at_end
                 && self.world.step > resumed_at
                 && stresses.iter().all(near)
+                && lateral.as_ref().is_none_or(near)
                 && ratio < self.params.unbalanced
             {
                 return Ok(());
@@ -908,7 +1085,7 @@ impl Triax {
             self.servo_step(&law);
             block += self.core_unbalanced();
         });
-        set_speeds(&mut self.world, &[0.0, 0.0]);
+        self.stop_walls();
         outcome?;
         if let Some(d) = self.progress.damping {
             self.world.material.damping = d;
@@ -923,6 +1100,7 @@ impl Triax {
             start_step: self.world.step,
             consolidation_steps: Some(self.world.step - start),
             damping: None,
+            lateral_integral: self.progress.lateral_integral,
         };
         Ok(())
     }
@@ -966,7 +1144,7 @@ impl Triax {
     pub fn hold(&mut self, steps: u64) {
         let law = self.platen_law();
         on_pool(|| (0..steps).for_each(|_| self.servo_step(&law)));
-        set_speeds(&mut self.world, &[0.0, 0.0]);
+        self.stop_walls();
     }
 
     /// Step 3: loading from where the progress is to `final_strain` (or `stop_at`, if lower:
@@ -983,6 +1161,7 @@ impl Triax {
         });
         let frame_every = self.params.frame_every;
         let schedule = Schedule::of(&self.params);
+        let law = self.platen_law();
         on_pool(|| loop {
             let [zb, zt] = self.platens();
             let strain = (self.progress.height0 / (zt - zb)).ln();
@@ -1013,19 +1192,23 @@ impl Triax {
             let v = self.params.rate * (zt - zb) * self.params.speed_up(elapsed);
             self.world.walls[BOTTOM].velocity = Vec3::z() * (0.5 * v);
             self.world.walls[TOP].velocity = -Vec3::z() * (0.5 * v);
+            self.servo_cylinder(&law);
             self.world.step();
         })
     }
 
-    /// Every particle's centroid inside the membrane's surface (the nearest ring of nodes'
-    /// polygon about the axis, with a particle's size as slack) and between the platens.
+    /// Every particle's centroid within the membrane's farthest free node from the axis (or the
+    /// rigid boundary's radius) and between the platens.
     fn check_contained(&self) -> Result<(), TriaxError> {
         let nodes = self.nodes();
         let m = self.world.walls[MEMBRANE].membrane.as_deref();
-        let outer = (nodes.iter().enumerate())
-            .filter(|(i, _)| m.is_some_and(|m| m.pin_of(*i).is_none()))
-            .map(|(_, x)| x.xy().norm())
-            .fold(0.0, f64::max);
+        let outer = match self.cylinder() {
+            Some((radius, _)) => radius,
+            None => (nodes.iter().enumerate())
+                .filter(|(i, _)| m.is_some_and(|m| m.pin_of(*i).is_none()))
+                .map(|(_, x)| x.xy().norm())
+                .fold(0.0, f64::max),
+        };
         let [zb, zt] = self.platens();
         for (i, b) in self.world.bodies.iter().enumerate() {
             let out = (b.pos.xy().norm() - outer)

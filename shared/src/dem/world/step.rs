@@ -191,7 +191,9 @@ impl World {
         let point = o.centroid;
         let rel = b.velocity_with(omega, &point) - va;
         let spin = 0.5 * n.dot(&(b.spin_with(omega) + omega_a));
-        let law = law::linear(material, self.dt, n, depth, point, rel, spin, last, friction);
+        let law = law::linear(
+            material, self.dt, n, depth, point, rel, spin, last, friction,
+        );
         let touch = Touch {
             force: law.force,
             point,
