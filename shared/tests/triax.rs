@@ -296,3 +296,36 @@ fn a_sharp_specimen_stays_inside_the_rigid_boundary_on_its_servo() {
     assert!(last.volumetric_strain < 0.0);
     assert!(last.radius_max > first.radius_max);
 }
+
+/// The largest per-body inertial number: with the true inertia (one density) it is the
+/// largest body's, `rate d_max sqrt(rho / p)`, above the mean number; with scaled inertia a
+/// small body, heavier for its size, has it, and it is larger still.
+#[test]
+fn the_largest_inertial_number_is_each_body_s_own() {
+    let true_inertia = Params {
+        inertia_scaling: false,
+        ..Params::default()
+    };
+    let t = Triax::new(specimen(), true_inertia.clone()).unwrap();
+    let m = t.measure();
+    let w = &t.world;
+    let d_max = (w.bodies.iter())
+        .map(|b| {
+            shared::geometry::mass::equivalent_diameter(w.shapes[b.shape as usize].volume) * b.scale
+        })
+        .fold(0.0, f64::max);
+    let expected = true_inertia.rate * d_max * (w.material.density / true_inertia.pressure).sqrt();
+    assert!(
+        (m.inertial_max / expected - 1.0).abs() < 1e-12,
+        "{} against {expected}",
+        m.inertial_max
+    );
+    assert!(m.inertial_max > m.inertial);
+    let scaled = Triax::new(specimen(), Params::default()).unwrap().measure();
+    eprintln!(
+        "inertial numbers: true inertia mean {:.2e} largest {:.2e}; scaled mean {:.2e} largest {:.2e}",
+        m.inertial, m.inertial_max, scaled.inertial, scaled.inertial_max
+    );
+    assert!(scaled.inertial_max > scaled.inertial);
+    assert!(scaled.inertial_max > m.inertial_max);
+}

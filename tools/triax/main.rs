@@ -778,6 +778,7 @@ struct CsvRow {
     radius_mean: f64,
     radius_max: f64,
     inertial: f64,
+    inertial_max: f64,
     unbalanced: f64,
     contacts: usize,
 }
@@ -814,6 +815,7 @@ impl CsvRow {
             radius_mean: m.radius_mean,
             radius_max: m.radius_max,
             inertial: m.inertial,
+            inertial_max: m.inertial_max,
             unbalanced: m.unbalanced,
             contacts: m.contacts,
         }

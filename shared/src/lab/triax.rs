@@ -450,6 +450,12 @@ pub struct Measure {
     /// `rate d sqrt(rho / p)`: `d` the mean particle size, `rho` the bodies' mass (scaled,
     /// when it is) over their volume.
     pub inertial: f64,
+    /// The largest of the bodies' own inertial numbers, `rate d_b sqrt(rho_b / p)` with each
+    /// body's size `d_b` and its own mass (scaled, when it is) over its volume `rho_b`: with
+    /// scaled inertia the smallest bodies, heaviest for their size, have the largest (absent
+    /// in streams written before it was measured: 0).
+    #[serde(default)]
+    pub inertial_max: f64,
     pub unbalanced: f64,
     pub contacts: usize,
 }
@@ -900,9 +906,23 @@ impl Triax {
             radius_mean,
             radius_max,
             inertial: self.params.rate * self.size * (density / self.params.pressure).sqrt(),
+            inertial_max: self.largest_inertial(),
             unbalanced: w.unbalanced,
             contacts: w.contacts.len(),
         }
+    }
+
+    /// The largest of the bodies' own inertial numbers ([`Measure::inertial_max`]).
+    fn largest_inertial(&self) -> f64 {
+        let w = &self.world;
+        (w.bodies.iter())
+            .map(|b| {
+                let volume = w.shapes[b.shape as usize].volume;
+                let density = b.mass / (volume * cube(b.scale));
+                let size = equivalent_diameter(volume) * b.scale;
+                self.params.rate * size * (density / self.params.pressure).sqrt()
+            })
+            .fold(0.0, f64::max)
     }
 
     /// The lateral boundary's contacts' outward radial force (N) and their number.
