@@ -253,8 +253,8 @@ fn a_hydrostatic_hold_on_the_rigid_boundary_stays_at_the_pressure() {
 
 /// The sharp specimen deep into loading on the rigid boundary: 10 % of axial strain at a
 /// fast rate, every particle checked inside the cylinder and between the platens at every
-/// measurement, the cylinder's stress held at the pressure (each measurement within 10 %, their
-/// mean within 2 %) while the specimen dilates and the cylinder opens.
+/// measurement, the cylinder's stress held at the pressure (each measurement within 3 %, their
+/// mean within 1 %) while the specimen dilates and the cylinder opens.
 #[test]
 fn a_sharp_specimen_stays_inside_the_rigid_boundary_on_its_servo() {
     let params = Params {
@@ -288,10 +288,10 @@ fn a_sharp_specimen_stays_inside_the_rigid_boundary_on_its_servo() {
     let p = params.pressure;
     let lateral: Vec<f64> = series[1..].iter().map(|m| m.membrane_stress).collect();
     for s in &lateral {
-        assert!((s - p).abs() < 0.1 * p, "cylinder at {s} Pa");
+        assert!((s - p).abs() < 0.03 * p, "cylinder at {s} Pa");
     }
     let mean = lateral.iter().sum::<f64>() / lateral.len() as f64;
-    assert!((mean - p).abs() < 0.02 * p, "cylinder's mean {mean} Pa");
+    assert!((mean - p).abs() < 0.01 * p, "cylinder's mean {mean} Pa");
     // It dilates, and the servo opens the cylinder to let it.
     assert!(last.volumetric_strain < 0.0);
     assert!(last.radius_max > first.radius_max);

@@ -519,7 +519,7 @@ fn consolidation_leaves_an_isotropic_start_at_quick_scale() {
 
 /// The rigid boundary through the tool: the pack's cylinder stays (no membrane in the settings
 /// or the frames), its servo holds its contacts' stress at the pressure (every measurement of
-/// the short test within 10 %), the frames run on in dem, a run stopped at a frame and resumed
+/// the short test within 3 %), the frames run on in dem, a run stopped at a frame and resumed
 /// writes the bytes of the run in one go, 1 and 2 threads the same; a stream whose settings
 /// name the other boundary than its walls is refused.
 #[test]
@@ -535,7 +535,7 @@ fn the_rigid_boundary_holds_the_pressure_resumes_to_the_same_bytes_and_refuses_a
     assert_eq!(measures.len(), 16);
     for m in &measures {
         let lateral = m["membrane_stress"].as_f64().unwrap();
-        assert!((lateral - 1e5).abs() < 0.1e5, "cylinder's stress {lateral}");
+        assert!((lateral - 1e5).abs() < 0.03e5, "cylinder's stress {lateral}");
         assert_eq!(m["radius_mean"], m["radius_max"]);
     }
     let q_end = measures.last().unwrap()["q_boundary"].as_f64().unwrap();
