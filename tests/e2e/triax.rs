@@ -535,7 +535,10 @@ fn the_rigid_boundary_holds_the_pressure_resumes_to_the_same_bytes_and_refuses_a
     assert_eq!(measures.len(), 16);
     for m in &measures {
         let lateral = m["membrane_stress"].as_f64().unwrap();
-        assert!((lateral - 1e5).abs() < 0.03e5, "cylinder's stress {lateral}");
+        assert!(
+            (lateral - 1e5).abs() < 0.03e5,
+            "cylinder's stress {lateral}"
+        );
         assert_eq!(m["radius_mean"], m["radius_max"]);
     }
     let q_end = measures.last().unwrap()["q_boundary"].as_f64().unwrap();
