@@ -180,8 +180,8 @@ pub fn linear(
         None => flat_potential(fn_, depth),
     };
     // Carry the stored shear force onto the new tangent plane and turn it with the pair about
-    // `n` (by the step's angle to first order, its magnitude kept: a turn of 1e-3 rad a step
-    // is short by 3e-10 rad), keeping its magnitude.
+    // `n` (by the step's angle to first order: a turn of 1e-3 rad a step is short by 3e-10
+    // rad), keeping its magnitude.
     let old = last.map_or(Vec3::zeros(), |c| c.shear);
     let mut shear = old - n * n.dot(&old);
     shear += n.cross(&shear) * (spin * dt);

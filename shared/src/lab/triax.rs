@@ -302,6 +302,15 @@ impl Params {
 /// /s (10 is as steady); with 300 it lagged to 119 kPa as the paper Ab_3 test started at 0.5 /s.
 const RIGID_INTEGRAL_STEPS: f64 = 30.0;
 
+/// The rigid boundary now: its radius (m), its area (its facet polygon's perimeter times the
+/// platens' gap, m^2), its contacts' outward radial push over that area (Pa) and their number.
+struct RigidWall {
+    radius: f64,
+    area: f64,
+    stress: f64,
+    count: usize,
+}
+
 /// The membrane of the test: the facet wall's index among the walls.
 pub const MEMBRANE: usize = SIDE;
 
@@ -509,6 +518,9 @@ impl Triax {
         if world.bodies.is_empty() {
             return Err(TriaxError::NotCylinder("no particles".into()));
         }
+        if params.inertia_scaling {
+            scale_inertia(&mut world);
+        }
         if params.boundary == Boundary::Rigid {
             return Triax::started(world, params, [Vec::new(), Vec::new()]);
         }
@@ -581,9 +593,6 @@ impl Triax {
             world.walls.len(),
         )
         .map_err(|e| TriaxError::Membrane(e.to_string()))?;
-        if params.inertia_scaling {
-            scale_inertia(&mut world);
-        }
         let bodies_dt = (world.critical_dts().iter())
             .map(|&(t, r)| t.min(r))
             .fold(f64::INFINITY, f64::min);
@@ -605,9 +614,6 @@ impl Triax {
         params: Params,
         rings: [Vec<u32>; 2],
     ) -> Result<Triax, TriaxError> {
-        if params.boundary == Boundary::Rigid && params.inertia_scaling {
-            scale_inertia(&mut world);
-        }
         for w in &mut world.walls {
             w.velocity = Vec3::zeros();
             if let WallKind::Cylinder { radial_rate, .. } = &mut w.kind {
@@ -858,11 +864,8 @@ impl Triax {
         // The lateral boundary: its contacts' outward radial push over its area, and its radius.
         let (push, _) = self.lateral_push();
         let (mut area, mut radii) = (0.0, Vec::new());
-        if let Some(b) = self.rigid_bounds() {
-            area = b.perimeter() * b.height();
-            if let Section::Circle { radius, .. } = b.section {
-                radii.push(radius);
-            }
+        if let Some(r) = self.rigid_wall() {
+            (area, radii) = (r.area, vec![r.radius]);
         } else if let WallKind::Facets {
             nodes, triangles, ..
         } = &w.walls[MEMBRANE].kind
@@ -946,12 +949,20 @@ impl Triax {
         (push, count)
     }
 
-    /// The rigid boundary's stress (its contacts' outward push over its area, Pa) and its
-    /// contacts; `None` with a membrane.
-    fn rigid_stress(&self) -> Option<(f64, usize)> {
+    /// The rigid boundary as its servo and the measurements see it; `None` with a membrane.
+    fn rigid_wall(&self) -> Option<RigidWall> {
         let b = self.rigid_bounds()?;
         let (push, count) = self.lateral_push();
-        Some((push / (b.perimeter() * b.height()), count))
+        let area = b.perimeter() * b.height();
+        let Section::Circle { radius, .. } = b.section else {
+            return None;
+        };
+        Some(RigidWall {
+            radius,
+            area,
+            stress: push / area,
+            count,
+        })
     }
 
     /// Stops the walls: the platens and the rigid boundary's radius.
@@ -970,14 +981,17 @@ impl Triax {
     /// stress, and `I` grows by `e / RIGID_INTEGRAL_STEPS` each step while the speed is below
     /// its cap; it is set as the radius's rate. Nothing with a membrane.
     fn servo_cylinder(&mut self, law: &ServoLaw) {
-        let (Some(b), Some((stress, count))) = (self.rigid_bounds(), self.rigid_stress()) else {
-            return;
-        };
-        let Section::Circle { radius, .. } = b.section else {
+        let Some(RigidWall {
+            radius,
+            area,
+            stress,
+            count,
+        }) = self.rigid_wall()
+        else {
             return;
         };
         let geometry = WallGeometry {
-            area: b.perimeter() * b.height(),
+            area,
             half: radius,
             weight: 1.0,
         };
@@ -1084,7 +1098,7 @@ impl Triax {
                 (s - self.params.pressure).abs() <= self.params.tolerance * self.params.pressure
             };
             // A resumed run starts at a block's end with no block behind it: it does not end.
-            let lateral = self.rigid_stress().map(|(s, _)| s);
+            let lateral = self.rigid_wall().map(|r| r.stress);
             if at_end
                 && self.world.step > resumed_at
                 && stresses.iter().all(near)
