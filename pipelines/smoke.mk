@@ -13,4 +13,4 @@ STUDY_SEEDS := 1 2
 PAPER_GROUPS := ip ab1
 PAPER_SEEDS := 1
 PAPER_SPECIMEN := --diameter 0.12 --height 0.24 --size-min 0.03 --size-max 0.04 --calibration-scale 1
-PAPER_TRIAX := --rate 0.5 --final-strain 0.005
+PAPER_TRIAX := --boundary rigid --rate 0.5 --final-strain 0.005
