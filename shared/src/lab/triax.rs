@@ -451,6 +451,12 @@ pub struct Measure {
     /// membrane, the confining pressure less what its own tension carries; on the rigid
     /// boundary, what its servo holds at the pressure.
     pub membrane_stress: f64,
+    /// `q` as a laboratory corrects it: the platens' mean force over the specimen's mean
+    /// section `V / H`, less what the lateral boundary transmits (`membrane_stress`), in place of
+    /// Eq. 20's end area and cell pressure; on the rigid boundary the section is the cylinder's
+    /// (absent in streams written before it was measured: 0).
+    #[serde(default)]
+    pub q_section: f64,
     /// Particle-particle contacts x 2 over particles, and without rattlers.
     pub coordination: f64,
     pub mechanical_coordination: f64,
@@ -856,6 +862,7 @@ impl Triax {
         let volume = self.volume();
         let (platens, _) = self.platen_stresses();
         let sigma1 = 0.5 * (platens[0] + platens[1]);
+        let force = 0.5 * (platens[0] * self.end_area(BOTTOM) + platens[1] * self.end_area(TOP));
         let sigma3 = self.params.pressure;
         let (full, pairs) = contact_stress(w, volume);
         let (p, q) = invariants(&full);
@@ -882,6 +889,7 @@ impl Triax {
                 .map(|(_, x)| x.xy().norm())
                 .collect();
         }
+        let membrane_stress = if area > 0.0 { push / area } else { 0.0 };
         let mass: f64 = w.bodies.iter().map(|b| b.mass).sum();
         let density = mass / self.solid;
         let strain = |a: f64, b: f64| if b > 0.0 { (b / a).ln() } else { 0.0 };
@@ -905,7 +913,8 @@ impl Triax {
             q,
             ratio: if p != 0.0 { q / p } else { 0.0 },
             p_pairs,
-            membrane_stress: if area > 0.0 { push / area } else { 0.0 },
+            membrane_stress,
+            q_section: force * height / volume - membrane_stress,
             coordination,
             mechanical_coordination,
             radius_mean,
@@ -1279,6 +1288,11 @@ pub struct Summary {
     pub poisson_ratio: f64,
     /// Peak friction angle, degrees: `sin phi = (s1 - s3) / (s1 + s3)` at the peak.
     pub friction_angle: f64,
+    /// The largest [`Measure::q_section`], Pa, the axial strain where it is, and the friction
+    /// angle from it, `s3` the lateral boundary's stress.
+    pub peak_q_section: f64,
+    pub peak_strain_section: f64,
+    pub friction_angle_section: f64,
     /// Dilatancy angle, degrees: `sin psi = -(d eps_v / d eps_a) / (2 - d eps_v / d eps_a)` at
     /// the largest dilation rate (the slope fitted over `window` measurements either side).
     pub dilatancy_angle: f64,
@@ -1406,6 +1420,17 @@ pub fn summarize(series: &[Measure]) -> Option<Summary> {
     }
     let degrees = |sin: f64| sin.clamp(-1.0, 1.0).asin().to_degrees();
     let last = series.last()?;
+    let section = (series.iter())
+        .max_by(|a, b| a.q_section.total_cmp(&b.q_section))
+        .filter(|m| m.q_section > 0.0);
+    let (peak_q_section, peak_strain_section, friction_angle_section) = match section {
+        Some(m) => {
+            let s3 = m.membrane_stress;
+            let angle = degrees(m.q_section / (m.q_section + 2.0 * s3));
+            (m.q_section, m.axial_strain, angle)
+        }
+        None => (f64::NAN, f64::NAN, f64::NAN),
+    };
     Some(Summary {
         peak_q: top.q_boundary,
         peak_strain: top.axial_strain,
@@ -1413,6 +1438,9 @@ pub fn summarize(series: &[Measure]) -> Option<Summary> {
         e50_strain: eps50,
         poisson_ratio: nu,
         friction_angle: degrees((top.sigma1 - top.sigma3) / (top.sigma1 + top.sigma3)),
+        peak_q_section,
+        peak_strain_section,
+        friction_angle_section,
         dilatancy_angle: degrees(-rate / (2.0 - rate)),
         dilatancy_strain: at,
         final_axial_strain: last.axial_strain,
