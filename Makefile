@@ -1,5 +1,5 @@
 # Every figure from scratch: `make figures` (or `make fig1` ... `make fig18`), `make paper`,
-# `make study`; `make smoke`: every recipe of those at a tiny scale (SCALE=smoke), as CI runs
+# `make study`, `make convergence` (the rate study); `make smoke`: every recipe of those at a tiny scale (SCALE=smoke), as CI runs
 # them; `make test`; `make bench`. Outputs go to out/ (out/smoke/ at the smoke scale; not
 # tracked).
 
@@ -22,7 +22,7 @@ export PATH := $(BIN):$(PATH)
 # Every line a tool writes on standard error starts with its target's name (`make -j`).
 export GRANULAR_TAG = $(patsubst $(OUT)/%,%,$@)
 
-.PHONY: all figures build test fuzz bench clean smoke paper fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax \
+.PHONY: all figures build test fuzz bench clean smoke paper convergence fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax \
   fig13 fig14 fig15 fig16 fig17 fig18
 all: figures
 figures: fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 fig11 fig12 figtriax \
@@ -48,15 +48,16 @@ include pipelines/bench.mk
 include pipelines/paper.mk
 include pipelines/fabric.mk
 include pipelines/study.mk
+include pipelines/convergence.mk
 
 test:
 	cargo test --release --locked --workspace
 
-# Every recipe of `make figures`, `make paper` and `make study`, from scratch, at the smoke
-# scale; then every picture is checked (pipelines/pictures.txt).
+# Every recipe of `make figures`, `make paper`, `make study` and `make convergence`, from
+# scratch, at the smoke scale; then every picture is checked (pipelines/pictures.txt).
 smoke: build
 	rm -rf $(SMOKE_OUT)
-	$(MAKE) SCALE=smoke figures paper study
+	$(MAKE) SCALE=smoke figures paper study convergence
 	cargo run --release --locked --quiet -p xtask -- check-pictures pipelines/pictures.txt $(SMOKE_OUT)
 
 # The readers' fuzzers (docs/GUIDE.md): FUZZ_SECONDS each, or 1e7 inputs.
