@@ -1,7 +1,8 @@
 # The rate study (`make convergence`; docs/models/triax.md, "Rates"): the paper's I_P specimen
 # (seed 1) tested on the rigid boundary at rates halving from 0.5 /s, and its curves one per
 # rate: q (q_section) and eps_v against the axial strain (out/convergence/macro.png), the
-# sliding ratio and the particles' mean rotation (micro.png); the runs' tables beside them.
+# sliding ratio and the particles' mean rotation (micro.png); the runs' tables beside them,
+# and the study's tables, each rate and each rate against half of it (table.md).
 # Two rates agree when q averaged over 0.5 % of strain is within 2 % of peak q, eps_v within
 # 2 % of its range and S_p within 0.02. `make -j 2 convergence` runs two rates at a time.
 
@@ -30,6 +31,8 @@ $(CONV)/fabric.csv: $(foreach r,$(CONV_RATES),$(CONV)/r$(r).fabric.csv)
 	  $(foreach r,$(CONV_RATES),tail -n +2 $(CONV)/r$(r).fabric.csv | sed 's/^/$(r),/' ;) ) > $@
 
 convergence: $(CONV)/triax.csv $(CONV)/fabric.csv
+	pipelines/convergence-table.sh $(CONV) $(CONV_RATES) > $(CONV)/table.md
+	cat $(CONV)/table.md
 	plot --x nominal_strain --y q_section,volumetric_strain --series rate --size 1200x500 \
 	  --xlabel "axial strain ln(H0/H)" --ylabel "q over the section V/H (Pa)" \
 	  --ylabel "volumetric strain ln(V0/V)" \
