@@ -12,7 +12,7 @@
 # Usage: pipelines/convergence-table.sh DIR RATE... (fastest first); each RATE has
 #   DIR/rRATE.triax.csv (triax --csv) and DIR/rRATE.fabric.csv (fabric on its stream).
 set -euo pipefail
-dir=$1
+dir=$1 here=$(dirname "$0")
 shift
 col() { head -n 1 "$1" | tr ',' '\n' | grep -n -x "$2" | cut -d: -f1; }
 # Every table and column first: a missing one stops with its name.
@@ -71,7 +71,7 @@ while [ $# -ge 2 ]; do
       ok = (x1 <= 0.02) && (x2 <= 0.02) && (v1 <= 0.02 * range) && (v2 <= 0.02 * range)
       printf "%.1f %% / %.1f %% | %s | %.1f %% / %s | %d", 100 * s1 / n1, 100 * x1,
         n2 ? sprintf("%.1f %% / %.1f %%", 100 * s2 / n2, 100 * x2) : "-", 100 * v1 / range,
-        n2 ? sprintf("%.1f %%", 100 * v2 / range) : "-", ok }' <(pipelines/on-grid.sh "$a") <(pipelines/on-grid.sh "$b"))
+        n2 ? sprintf("%.1f %%", 100 * v2 / range) : "-", ok }' <("$here/on-grid.sh" "$a") <("$here/on-grid.sh" "$b"))
   fa=$dir/r$fast.fabric.csv fb=$dir/r$slow.fabric.csv
   micro=$(awk -F, -v ea="$(col "$fa" axial_strain)" -v sa="$(col "$fa" sliding_ratio)" \
       -v ra="$(col "$fa" rotation)" -v e="$(col "$fb" axial_strain)" \
