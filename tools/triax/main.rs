@@ -709,9 +709,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
     let summary = triax::summarize(&series);
     if let Some(s) = &summary {
         say(format!(
-            "peak q {:.4e} Pa at axial strain {:.4}; E50 {:.4e} Pa; Poisson's ratio {:.3}; friction angle {:.2} deg; dilatancy angle {:.2} deg; final volumetric strain {:.4e}; {} steps of loading; {:.1} s",
+            "peak q {:.4e} Pa at axial strain {:.4}; E50 {:.4e} Pa; Poisson's ratio {:.3}; friction angle {:.2} deg; dilatancy angle {:.2} deg; over the section V/H, less the lateral boundary's stress: peak q {:.4e} Pa, friction angle {:.2} deg; final volumetric strain {:.4e}; {} steps of loading; {:.1} s",
             s.peak_q, s.peak_strain, s.e50, s.poisson_ratio, s.friction_angle, s.dilatancy_angle,
-            s.final_volumetric_strain, test_steps(test.world.step, test.progress.start_step), clock.elapsed().as_secs_f64()
+            s.peak_q_section, s.friction_angle_section, s.final_volumetric_strain, test_steps(test.world.step, test.progress.start_step), clock.elapsed().as_secs_f64()
         ));
     }
     if let Some(path) = &args.summary {
