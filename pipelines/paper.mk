@@ -21,13 +21,14 @@ limits = $(shell awk -F, '$$1 == "$(1)" {print $$2 "," $$3}' pipelines/limits.cs
 
 paper-specimens: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).spec.jsonl)
 
-# $(PAPER)/G-S.spec.jsonl: group G's specimen, pack seed S (its summary beside it).
+# $(PAPER)/G-S.spec.jsonl: group G's specimen, pack seed S (its summary beside it). A stopped
+# pack made again takes the compactions it finished from its journal (G-S.spec.journal).
 .SECONDEXPANSION:
 $(PAPER)/%.spec.jsonl: $(OUT)/group-$$(word 1,$$(subst -, ,$$*)).obj
 	mkdir -p $(PAPER)
 	pack $(PAPER_SPECIMEN) --relative-density 0.8 --refine-runs 1 --seed $(word 2,$(subst -, ,$*)) \
 	  --void-ratio-limits $(call limits,$(word 1,$(subst -, ,$*))) \
-	  --summary $(PAPER)/$*.spec.json < $< > $@.part 2> $(PAPER)/$*.spec.log
+	  --journal $(PAPER)/$*.spec.journal --summary $(PAPER)/$*.spec.json < $< > $@.part 2> $(PAPER)/$*.spec.log
 	mv $@.part $@
 
 # The triaxial test of each specimen, and the paper's figures 9-12 with every group's curve the

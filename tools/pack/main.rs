@@ -21,6 +21,8 @@ Examples:
   pack --relative-density 0.8 --void-ratio-limits 0.618,1.175 < nine.obj > dr08.jsonl
   pack --relative-density 0.8 --void-ratio-limits 0.618,1.175 --refine-runs 1 < nine.obj > dr08.jsonl
       (the sample's friction corrected by one compaction at full size: Dr nearer 0.8)
+  pack --relative-density 0.8 --journal dr08.journal < nine.obj > dr08.jsonl
+      (stopped and started again, it takes the compactions it finished from dr08.journal)
   pack --container box --width 0.2 --depth 0.2 --height 0.4 < nine.obj > box.jsonl
   pack ... | dem --steps 1000 > later.jsonl      (the specimen is a dem state: it runs on)
 
@@ -208,6 +210,12 @@ struct Cli {
     /// Write the summary as one JSON line to FILE
     #[arg(long)]
     summary: Option<std::path::PathBuf>,
+    /// Keep each finished compaction of the limits, the calibration and the refinement in
+    /// FILE (JSON lines, created if missing); started again with the same FILE, templates and
+    /// options, pack takes those runs from it instead of running them again, and writes the same
+    /// specimen to the bit. For long preparations that a job's time limit may stop
+    #[arg(long, value_name = "FILE")]
+    journal: Option<std::path::PathBuf>,
     /// Write VTK snapshots of the preparation (particles, contacts, walls as .vtu, and .pvd
     /// collections for ParaView) into DIR: one every --every steps, and the specimen
     #[arg(long, value_name = "DIR")]
@@ -250,12 +258,22 @@ impl Runs {
     /// A status of a run of `what` at preparation friction `f` (a new run when its steps
     /// start again).
     fn report(&mut self, what: &str, f: f64, s: &pack::Status) {
-        if self.run == 0 || s.step < self.last {
+        let reused = s.phase == pack::REUSED;
+        if reused || self.run == 0 || s.step < self.last {
             self.run += 1;
             self.clock = std::time::Instant::now();
         }
         self.last = s.step;
         let (run, total) = (self.run, self.total.max(self.run));
+        if reused {
+            // The next report, at any step, starts a run.
+            self.last = u64::MAX;
+            self.say(&format!(
+                "run {run} of {total} ({what} at friction {f:.4}): taken from the journal, porosity {:.4}",
+                s.porosity
+            ));
+            return;
+        }
         let target = match s.phase {
             "compaction" => self.targets[0],
             _ => self.targets[1],
@@ -333,6 +351,7 @@ const MIN_COUNT: usize = 6;
 
 fn run(args: Cli) -> anyhow::Result<()> {
     cli::check_output(args.summary.as_deref(), "--summary")?;
+    cli::check_output(args.journal.as_deref(), "--journal")?;
     if args.every == 0 {
         return Err(cli::usage("--every must be at least 1"));
     }
@@ -419,6 +438,38 @@ fn run(args: Cli) -> anyhow::Result<()> {
         }
     };
     let mut runs = Runs::new(total, [params.prep_unbalanced, params.unbalanced]);
+    let (journal_text, mut journal_file) = match &args.journal {
+        Some(path) => {
+            let text = match std::fs::read_to_string(path) {
+                Ok(t) => t,
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => String::new(),
+                Err(e) => {
+                    return Err(e).with_context(|| format!("reading --journal {}", path.display()))
+                }
+            };
+            let file = std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(path)
+                .with_context(|| format!("opening --journal {}", path.display()))?;
+            // A last line cut short by a stop goes, so that the next line starts afresh.
+            let whole = text.rfind('\n').map_or(0, |i| i + 1);
+            if whole < text.len() {
+                file.set_len(whole as u64)
+                    .with_context(|| format!("cutting --journal {}", path.display()))?;
+            }
+            (text, Some(file))
+        }
+        None => (String::new(), None),
+    };
+    let mut journal = pack::Journal::new(
+        &journal_text,
+        journal_file.as_mut().map(|f| f as &mut dyn Write),
+    )
+    .map_err(|e| match &args.journal {
+        Some(path) => anyhow::anyhow!("--journal {}: {e}", path.display()),
+        None => e.into(),
+    })?;
     if let Some((lo, hi)) = limits {
         if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo < hi) {
             return Err(cli::usage(format!(
@@ -433,6 +484,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
             args.calibration_scale,
             args.loose_friction,
             REPORT_STEPS,
+            &mut journal,
             |f, s| runs.report("limits", f, s),
         )
         .map_err(flagged)?;
@@ -462,6 +514,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 args.loose_friction,
                 args.calibration_runs,
                 REPORT_STEPS,
+                &mut journal,
                 |f, s| runs.report("calibration", f, s),
             )
             .map_err(flagged)?;
@@ -490,6 +543,7 @@ fn run(args: Cli) -> anyhow::Result<()> {
                 given,
                 args.refine_runs,
                 REPORT_STEPS,
+                &mut journal,
                 |f, s| runs.report("refinement", f, s),
             )
             .map_err(flagged)?;

@@ -186,6 +186,8 @@ pub enum PackError {
     Param { field: &'static str, rule: String },
     #[error("{0}")]
     Bad(String),
+    #[error("{0}")]
+    Journal(String),
     #[error("a particle of size {size} m ({measure:?}) spans {span:.4} m, more than the container's {what} of {limit} m")]
     TooLarge {
         size: f64,
@@ -705,22 +707,159 @@ fn sample(p: &Params, scale: f64) -> Result<Params, PackError> {
 }
 
 /// The particle count and void ratio at the end of compaction (step 3) of `sample` at
-/// preparation `friction`; `report` sees the friction and status.
+/// preparation `friction`, from `journal` if it holds that compaction, else run and recorded
+/// there; `report` sees the friction and status of a run.
 fn compacted(
     templates: &[Shape],
     sample: &Params,
     friction: f64,
     every: u64,
+    journal: &mut Journal,
     report: &mut (impl FnMut(f64, &Status) + Send),
 ) -> Result<(usize, f64), PackError> {
     let q = Params {
         prep_friction: friction,
         ..sample.clone()
     };
+    let key = journal.key(templates, &q);
+    if let Some(&found) = journal.done.get(&key) {
+        journal.reused.push(friction);
+        report(
+            friction,
+            &Status {
+                phase: REUSED,
+                step: 0,
+                stresses: Vec::new(),
+                porosity: found.1 / (1.0 + found.1),
+                unbalanced: f64::NAN,
+            },
+        );
+        return Ok(found);
+    }
     let mut w = cloud(templates.to_vec(), &q)?;
     compact(&mut w, &q, every, |s, _| report(friction, s))?;
     let n = porosity(&w);
-    Ok((w.bodies.len(), n / (1.0 - n)))
+    let found = (w.bodies.len(), n / (1.0 - n));
+    journal.record(key, &q, found)?;
+    Ok(found)
+}
+
+/// The phase [`Status`] reports for a compaction taken from the [`Journal`] (once, at step 0).
+pub const REUSED: &str = "journal";
+
+/// The compactions a preparation has run ([`void_limits`], [`calibrate`], [`refine`]), kept
+/// so that a stopped preparation started again takes the runs it finished instead of running
+/// them again, with the same result to the bit. Each compaction is a JSON line (its fields in
+/// [`JournalLine`]), keyed by a fingerprint of the templates and every parameter of the run,
+/// so lines of other runs are passed over. The key does not cover the engine's code: a journal
+/// is for the build that wrote it.
+#[derive(Default)]
+pub struct Journal<'a> {
+    done: HashMap<String, (usize, f64)>,
+    sink: Option<&'a mut dyn std::io::Write>,
+    /// The frictions of the compactions taken from the journal, in the order asked for.
+    pub reused: Vec<f64>,
+}
+
+/// One compaction in a [`Journal`].
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct JournalLine {
+    /// The fingerprint of the templates and the run's parameters (16 hex digits).
+    pub key: String,
+    /// The preparation friction and the container's height, for a reader.
+    pub friction: f64,
+    pub height: f64,
+    pub particles: usize,
+    pub void_ratio: f64,
+}
+
+impl<'a> Journal<'a> {
+    /// A journal holding the compactions in `text` (JSON lines), writing new ones to `sink`.
+    /// A last line cut short (a run stopped while writing it) is passed over; any other line
+    /// that is not a compaction is an error naming the line.
+    pub fn new(text: &str, sink: Option<&'a mut dyn std::io::Write>) -> Result<Self, PackError> {
+        let mut done = HashMap::new();
+        let lines: Vec<&str> = text.split_inclusive('\n').collect();
+        for (i, line) in lines.iter().enumerate() {
+            if line.trim().is_empty() {
+                continue;
+            }
+            match serde_json::from_str::<JournalLine>(line) {
+                Ok(l) => {
+                    done.insert(l.key, (l.particles, l.void_ratio));
+                }
+                Err(_) if i + 1 == lines.len() && !line.ends_with('\n') => {}
+                Err(e) => {
+                    return Err(PackError::Journal(format!(
+                        "journal line {} is not a compaction ({e}): {}",
+                        i + 1,
+                        line.trim_end()
+                    )))
+                }
+            }
+        }
+        Ok(Journal {
+            done,
+            sink,
+            reused: Vec::new(),
+        })
+    }
+
+    /// The key of a compaction of `templates` under `p`: FNV-1a over each template's name,
+    /// vertices and faces, and `p` as JSON (its floats written to the bit).
+    fn key(&self, templates: &[Shape], p: &Params) -> String {
+        let mut h = Fnv::default();
+        for t in templates {
+            h.bytes(t.name.as_bytes());
+            for v in &t.vertices {
+                for x in v.iter() {
+                    h.bytes(&x.to_bits().to_le_bytes());
+                }
+            }
+            for &i in t.face_start.iter().chain(&t.face_verts) {
+                h.bytes(&i.to_le_bytes());
+            }
+        }
+        h.bytes(serde_json::to_string(p).unwrap_or_default().as_bytes());
+        format!("{:016x}", h.0)
+    }
+
+    fn record(&mut self, key: String, p: &Params, found: (usize, f64)) -> Result<(), PackError> {
+        self.done.insert(key.clone(), found);
+        let Some(sink) = self.sink.as_mut() else {
+            return Ok(());
+        };
+        let line = JournalLine {
+            key,
+            friction: p.prep_friction,
+            height: p.height,
+            particles: found.0,
+            void_ratio: found.1,
+        };
+        let mut text =
+            serde_json::to_string(&line).map_err(|e| PackError::Journal(e.to_string()))?;
+        text.push('\n');
+        sink.write_all(text.as_bytes())
+            .and_then(|()| sink.flush())
+            .map_err(|e| PackError::Journal(format!("writing the journal: {e}")))
+    }
+}
+
+/// The 64-bit FNV-1a hash, stable across builds and platforms (the journal's keys).
+struct Fnv(u64);
+
+impl Default for Fnv {
+    fn default() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv {
+    fn bytes(&mut self, b: &[u8]) {
+        for &x in b {
+            self.0 = (self.0 ^ u64::from(x)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
 }
 
 fn check_loose(loose_friction: f64) -> Result<(), PackError> {
@@ -754,6 +893,7 @@ pub fn void_limits(
     scale: f64,
     loose_friction: f64,
     every: u64,
+    journal: &mut Journal,
     mut report: impl FnMut(f64, &Status) + Send,
 ) -> Result<Limits, PackError> {
     limits_of(
@@ -762,6 +902,7 @@ pub fn void_limits(
         scale,
         loose_friction,
         every,
+        journal,
         &mut report,
     )
 }
@@ -773,11 +914,12 @@ fn limits_of(
     scale: f64,
     loose_friction: f64,
     every: u64,
+    journal: &mut Journal,
     report: &mut (impl FnMut(f64, &Status) + Send),
 ) -> Result<Limits, PackError> {
     check_loose(loose_friction)?;
-    let (_, e_min) = compacted(templates, sample, 0.0, every, report)?;
-    let (particles, e_max) = compacted(templates, sample, loose_friction, every, report)?;
+    let (_, e_min) = compacted(templates, sample, 0.0, every, journal, report)?;
+    let (particles, e_max) = compacted(templates, sample, loose_friction, every, journal, report)?;
     Ok(Limits {
         scale,
         particles,
@@ -800,6 +942,7 @@ pub fn calibrate(
     loose_friction: f64,
     extra: usize,
     every: u64,
+    journal: &mut Journal,
     mut report: impl FnMut(f64, &Status) + Send,
 ) -> Result<Calibration, PackError> {
     if !(0.0..=1.0).contains(&relative_density) {
@@ -815,6 +958,7 @@ pub fn calibrate(
         scale,
         loose_friction,
         every,
+        journal,
         &mut report,
     )?;
     let (e_min, e_max) = (limits.e_min, limits.e_max);
@@ -823,7 +967,7 @@ pub fn calibrate(
     let (mut lo, mut hi) = (runs[0], runs[1]);
     for _ in 0..extra {
         let f = next_friction(lo, hi, target);
-        let (_, e) = compacted(templates, &sample, f, every, &mut report)?;
+        let (_, e) = compacted(templates, &sample, f, every, journal, &mut report)?;
         runs.push((f, e));
         if e <= target {
             lo = (f, e);
@@ -905,6 +1049,7 @@ pub fn refine(
     limits: (f64, f64),
     runs: usize,
     every: u64,
+    journal: &mut Journal,
     mut report: impl FnMut(f64, &Status) + Send,
 ) -> Result<Refinement, PackError> {
     let (e_min, e_max) = limits;
@@ -912,7 +1057,7 @@ pub fn refine(
     let mut f = calibration.prep_friction;
     let mut done = Vec::with_capacity(runs);
     for _ in 0..runs {
-        let (_, e) = compacted(templates, p, f, every, &mut report)?;
+        let (_, e) = compacted(templates, p, f, every, journal, &mut report)?;
         done.push((f, e));
         let offset = e - sample_void_ratio(&calibration.runs, f);
         f = sample_friction(&calibration.runs, target - offset);
@@ -1072,6 +1217,48 @@ mod tests {
         // Outside the sample's range: its ends.
         assert_eq!(sample_friction(&runs, 0.5), 0.0);
         assert_eq!(sample_friction(&runs, 1.2), 1.0);
+    }
+
+    #[test]
+    fn a_journal_key_changes_with_any_template_or_parameter_and_lines_come_back_to_the_bit() {
+        let cube = Shape::from_mesh(&crate::geometry::mesh::cube(0.5)).unwrap();
+        let other = Shape::from_mesh(&crate::geometry::mesh::cube(0.6)).unwrap();
+        let p = Params::default();
+        let j = Journal::default();
+        let key = j.key(&[cube.clone()], &p);
+        assert_eq!(key.len(), 16);
+        assert_eq!(key, j.key(&[cube.clone()], &p));
+        let seeded = Params {
+            seed: p.seed + 1,
+            ..p.clone()
+        };
+        let rubbed = Params {
+            prep_friction: p.prep_friction.next_up(),
+            ..p.clone()
+        };
+        for k in [
+            j.key(&[other], &p),
+            j.key(&[cube.clone(), cube.clone()], &p),
+            j.key(&[cube.clone()], &seeded),
+            j.key(&[cube.clone()], &rubbed),
+        ] {
+            assert_ne!(k, key);
+        }
+        // A recorded compaction reads back with its void ratio to the bit; a last line cut
+        // short is passed over.
+        let mut text = Vec::new();
+        let mut sink: &mut dyn std::io::Write = &mut text;
+        let mut j = Journal::new("", Some(&mut sink)).unwrap();
+        let e = 0.1f64 + 0.2;
+        j.record(key.clone(), &p, (36, e)).unwrap();
+        drop(j);
+        let text = String::from_utf8(text).unwrap();
+        let cut = format!("{text}{}", &text[..20]);
+        let j = Journal::new(&cut, None).unwrap();
+        assert_eq!(j.done.get(&key), Some(&(36, e)));
+        assert_eq!(j.done.len(), 1);
+        let bad = format!("{}{text}", &text[..20]);
+        assert!(Journal::new(&format!("{bad}\n"), None).is_err());
     }
 
     #[test]
