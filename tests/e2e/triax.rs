@@ -575,3 +575,91 @@ fn the_rigid_boundary_holds_the_pressure_resumes_to_the_same_bytes_and_refuses_a
         &["rigid boundary", "not a cylinder"],
     );
 }
+
+/// A hold through the tool (`--hold`): from the frame at 1 % of strain, the platens stay where
+/// they are while the rigid boundary keeps the pressure; q and the unbalanced ratio fall and
+/// fewer contacts slide than in loading; resumed, the held stream loads on to the final strain,
+/// and the summary leaves the hold's measurements out. Bad --hold values are refused.
+#[test]
+fn a_hold_keeps_the_platens_still_relaxes_the_specimen_and_loads_on_when_resumed() {
+    let mut args = SHORT.to_vec();
+    args.extend(["--boundary", "rigid", "--stop-at", "0.01"]);
+    let part = ok("triax", &args, specimen());
+    let held = ok("triax", &["--hold", "3000", "--hold-every", "1000"], &part);
+    let before = records(&part);
+    let last = before
+        .iter()
+        .rev()
+        .find(|r| r["type"] == "measure")
+        .unwrap();
+    let recs = records(&held);
+    let measures: Vec<&serde_json::Value> =
+        recs.iter().filter(|r| r["type"] == "measure").collect();
+    let frames = recs.iter().filter(|r| r["type"] == "frame").count();
+    assert_eq!((measures.len(), frames), (3, 3));
+    let num = |r: &serde_json::Value, k: &str| r[k].as_f64().unwrap();
+    for (k, m) in measures.iter().enumerate() {
+        assert_eq!(m["axial_strain"], last["axial_strain"], "the platens moved");
+        assert_eq!(num(m, "step"), num(last, "step") + 1000.0 * (k + 1) as f64);
+        let lateral = num(m, "membrane_stress");
+        assert!(
+            (lateral - 1e5).abs() < 0.03e5,
+            "cylinder's stress {lateral}"
+        );
+    }
+    let end = measures[2];
+    eprintln!(
+        "q {} -> {}, unbalanced {} -> {}",
+        num(last, "q_boundary"),
+        num(end, "q_boundary"),
+        num(last, "unbalanced"),
+        num(end, "unbalanced")
+    );
+    assert!(num(end, "q_boundary") < num(last, "q_boundary"));
+    assert!(num(end, "unbalanced") < num(last, "unbalanced"));
+    // The sliding ratio of the last loading frame against the held frames'.
+    let mut joined = part.clone();
+    joined.extend(&held);
+    let rows: Vec<serde_json::Value> =
+        String::from_utf8(ok("fabric", &["--json", "--quiet"], &joined))
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+    let sliding: Vec<f64> = rows.iter().map(|r| num(r, "sliding_ratio")).collect();
+    eprintln!("sliding ratio by frame: {sliding:?}");
+    let n = sliding.len();
+    assert!(sliding[n - 1] < sliding[n - 4], "{sliding:?}");
+    // Loading goes on from the held state to the final strain.
+    let rest = ok("triax", &[], &joined);
+    let out = records(&rest);
+    let fin = out.iter().rev().find(|r| r["type"] == "measure").unwrap();
+    assert!(num(fin, "axial_strain") >= 0.02, "{}", fin["axial_strain"]);
+    joined.extend(&rest);
+    let dir = std::env::temp_dir().join(format!("triax-hold-e2e-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("summary.json");
+    ok("triax", &["--summary", path.to_str().unwrap()], &joined);
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(num(&s, "dilatancy_angle").is_finite(), "{s}");
+    assert!(num(&s, "poisson_ratio").is_finite(), "{s}");
+    // Bad input.
+    fails("triax", &["--hold", "0"], &part, 2, &["--hold"]);
+    fails(
+        "triax",
+        &["--hold", "10", "--hold-every", "0"],
+        &part,
+        2,
+        &["--hold-every"],
+    );
+    fails(
+        "triax",
+        &["--hold", "10", "--stop-at", "0.01"],
+        &part,
+        2,
+        &["--stop-at"],
+    );
+    fails("triax", &["--hold-every", "10"], &part, 2, &["--hold"]);
+}

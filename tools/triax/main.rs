@@ -22,6 +22,9 @@ Examples:
   triax --boundary rigid < spec.jsonl > rigid.jsonl      (the rigid cylinder on a servo)
   triax --stop-at 0.05 < spec.jsonl > part.jsonl && triax < part.jsonl > rest.jsonl
       (cat part.jsonl rest.jsonl: the same bytes as the run in one go)
+  triax --hold 20000 --hold-every 4000 < part.jsonl > held.jsonl
+      (the platens still at 5 % of strain for 20 000 steps: how q, the unbalanced ratio and,
+      by fabric on the frames, the sliding ratio settle when nothing is driven)
   pipelines/triax-resume.sh spec.jsonl run.jsonl        (a killed run goes on from its last
       whole frame: a checkpoint in consolidation, every --checkpoint-every steps, or in loading)
   triax --vtk out/run-vtk --obj end.obj < spec.jsonl > run.jsonl && render < end.obj > end.png
@@ -133,6 +136,15 @@ struct Cli {
     /// the stream)
     #[arg(long, allow_negative_numbers = true)]
     stop_at: Option<f64>,
+    /// Instead of loading, hold the platens still for STEPS steps from where the test is (after
+    /// consolidation, or at the input stream's last frame), the lateral boundary at
+    /// --pressure: the specimen relaxes with nothing driven. The stream goes on with a
+    /// measurement and a frame every --hold-every steps, and loads on when resumed
+    #[arg(long, value_name = "STEPS", conflicts_with = "stop_at")]
+    hold: Option<u64>,
+    /// Steps between a hold's measurements and frames (--hold)
+    #[arg(long, value_name = "STEPS", default_value_t = 2000, requires = "hold")]
+    hold_every: u64,
     /// Write the test's summary (peak q, E50, Poisson's ratio, friction and dilatancy angles,
     /// final volumetric strain) as one JSON line to FILE
     #[arg(long, value_name = "FILE")]
@@ -506,6 +518,11 @@ fn run(args: Cli) -> anyhow::Result<()> {
             )));
         }
     }
+    if args.hold == Some(0) || args.hold_every == 0 {
+        return Err(cli::usage(
+            "--hold and --hold-every must be at least 1 step",
+        ));
+    }
     params_of(&args).check().map_err(flagged)?;
     for (path, flag) in [
         (&args.summary, "--summary"),
@@ -665,6 +682,19 @@ fn run(args: Cli) -> anyhow::Result<()> {
                         cli::duration(left)
                     )
                 }),
+                Event::Holding(held, steps) => report.status(|| {
+                    let speed = per_second(held, loading_clock);
+                    let q = series.last().map_or(String::new(), |m| {
+                        format!(
+                            ": q {:.4e} Pa, unbalanced {:.3e}",
+                            m.q_boundary, m.unbalanced
+                        )
+                    });
+                    format!(
+                        "held {held} of {steps} steps{q}, {speed:.0} steps/s, about {} left",
+                        cli::duration((steps - held) as f64 / speed.max(1e-9))
+                    )
+                }),
                 Event::Consolidating(..) | Event::Checkpoint(..) => {}
             }
             Ok(())
@@ -673,7 +703,9 @@ fn run(args: Cli) -> anyhow::Result<()> {
             failure = Some(e);
         }
     };
-    if test.progress.frames > 0 && test_is_done(&test) {
+    if let Some(steps) = args.hold {
+        test.relax(steps, args.hold_every, &mut sink)?;
+    } else if test.progress.frames > 0 && test_is_done(&test) {
         say("the stream's test is complete: nothing to do".into());
     } else {
         test.load(args.stop_at, &mut sink)?;

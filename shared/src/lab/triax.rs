@@ -502,6 +502,9 @@ pub enum Event<'a> {
     Frame(&'a World, &'a Progress),
     /// Loading's progress, every [`LOADING_REPORT`] steps: the step and the axial strain.
     Loading(u64, f64),
+    /// A hold's progress ([`Triax::relax`]), every [`LOADING_REPORT`] steps: the steps held
+    /// and the steps to hold.
+    Holding(u64, u64),
 }
 
 /// Steps of loading between [`Event::Loading`] reports (cheap: the platens' gap, no
@@ -1242,6 +1245,38 @@ impl Triax {
         })
     }
 
+    /// A hold from where the test is: the platens still for `steps` steps while the lateral
+    /// boundary stays at the pressure (the membrane's, or the rigid boundary on its servo), so
+    /// that the specimen relaxes with nothing driven. A measurement and a frame go to `sink`
+    /// every `every` steps and at the end; the progress is left as it was, so that loading
+    /// goes on from the held state.
+    pub fn relax(
+        &mut self,
+        steps: u64,
+        every: u64,
+        sink: &mut (impl FnMut(Event) + Send),
+    ) -> Result<(), TriaxError> {
+        let law = self.platen_law();
+        set_speeds(&mut self.world, &[0.0, 0.0]);
+        let every = every.max(1);
+        on_pool(|| {
+            for held in 1..=steps {
+                self.servo_cylinder(&law);
+                self.world.step();
+                if held % every == 0 || held == steps {
+                    let m = self.measure();
+                    self.check_contained()?;
+                    sink(Event::Measure(&m));
+                    sink(Event::Frame(&self.world, &self.progress));
+                }
+                if held % LOADING_REPORT == 0 {
+                    sink(Event::Holding(held, steps));
+                }
+            }
+            Ok(())
+        })
+    }
+
     /// Every particle's centroid within the membrane's farthest free node from the axis (or the
     /// rigid boundary's radius) and between the platens.
     fn check_contained(&self) -> Result<(), TriaxError> {
@@ -1369,9 +1404,22 @@ fn slope(points: &[(f64, f64)]) -> Option<f64> {
     (sxx > 0.0).then(|| sxy / sxx)
 }
 
-/// The summary of a test's measurements in loading (in strain order); `None` with fewer than
+/// The summary of a test's measurements in loading (in strain order; a hold's, which do not
+/// advance the strain, are left out); `None` with fewer than
 /// three or no positive peak.
 pub fn summarize(series: &[Measure]) -> Option<Summary> {
+    // A hold's measurements ([`Triax::relax`]) repeat the strain: loading's are the ones
+    // that advance it.
+    let mut reach = f64::NEG_INFINITY;
+    let loading: Vec<Measure> = (series.iter())
+        .filter(|m| {
+            let on = m.axial_strain > reach;
+            reach = reach.max(m.axial_strain);
+            on
+        })
+        .cloned()
+        .collect();
+    let series = &loading[..];
     if series.len() < 3 {
         return None;
     }
