@@ -136,10 +136,11 @@ struct Cli {
     /// the stream)
     #[arg(long, allow_negative_numbers = true)]
     stop_at: Option<f64>,
-    /// Instead of loading, hold the platens still for STEPS steps from where the test is (after
-    /// consolidation, or at the input stream's last frame), the lateral boundary at
-    /// --pressure: the specimen relaxes with nothing driven. The stream goes on with a
-    /// measurement and a frame every --hold-every steps, and loads on when resumed
+    /// Instead of loading, hold the platens for STEPS steps from where the test is (after
+    /// consolidation, or at the input stream's last frame): they slow down over the stream's
+    /// --ramp of strain, as they came up to speed, and stay still, the lateral boundary at
+    /// --pressure, so that the specimen relaxes with nothing driven. The stream goes on with
+    /// a measurement and a frame every --hold-every steps, and loads on when resumed
     #[arg(long, value_name = "STEPS", conflicts_with = "stop_at")]
     hold: Option<u64>,
     /// Steps between a hold's measurements and frames (--hold)

@@ -413,6 +413,19 @@ pub struct Progress {
     /// The rigid boundary's servo's integral term, Pa (absent with a membrane).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lateral_integral: Option<f64>,
+    /// The step of a hold's frame ([`Triax::relax`]; absent otherwise): loading that goes on
+    /// from it comes up to speed again from there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub held_at: Option<u64>,
+}
+
+impl Progress {
+    /// Seconds since the platens last started from rest: the start of loading, or the hold
+    /// loading goes on from.
+    fn moving_for(&self, w: &World) -> f64 {
+        let from = self.held_at.unwrap_or(self.start_step);
+        w.step.saturating_sub(from) as f64 * w.dt
+    }
 }
 
 /// What the test measures, every `every` of axial strain (SI units, compression positive).
@@ -645,6 +658,7 @@ impl Triax {
                 consolidation_steps: None,
                 damping: None,
                 lateral_integral: None,
+                held_at: None,
             },
             world,
             params,
@@ -1149,6 +1163,7 @@ impl Triax {
             consolidation_steps: Some(self.world.step - start),
             damping: None,
             lateral_integral: self.progress.lateral_integral,
+            held_at: None,
         };
         Ok(())
     }
@@ -1236,8 +1251,9 @@ impl Triax {
             if self.world.step % LOADING_REPORT == 0 {
                 sink(Event::Loading(self.world.step, strain));
             }
-            let elapsed = (self.world.step - self.progress.start_step) as f64 * self.world.dt;
-            let v = self.params.rate * (zt - zb) * self.params.speed_up(elapsed);
+            let v = self.params.rate
+                * (zt - zb)
+                * self.params.speed_up(self.progress.moving_for(&self.world));
             self.world.walls[BOTTOM].velocity = Vec3::z() * (0.5 * v);
             self.world.walls[TOP].velocity = -Vec3::z() * (0.5 * v);
             self.servo_cylinder(&law);
@@ -1245,11 +1261,13 @@ impl Triax {
         })
     }
 
-    /// A hold from where the test is: the platens still for `steps` steps while the lateral
-    /// boundary stays at the pressure (the membrane's, or the rigid boundary on its servo), so
-    /// that the specimen relaxes with nothing driven. A measurement and a frame go to `sink`
-    /// every `every` steps and at the end; the progress is left as it was, so that loading
-    /// goes on from the held state.
+    /// A hold from where the test is, `steps` steps in all: the platens slow down from
+    /// loading's speed as they came up to it (over `ramp` of strain, [`Params::speed_up`]
+    /// backwards; a stop at once sends an unloading wave through the specimen) and then stay
+    /// still, while the lateral boundary stays at the pressure (the membrane's, or the rigid
+    /// boundary on its servo), so that the specimen relaxes with nothing driven. A
+    /// measurement and a frame go to `sink` every `every` steps and at the end; the progress
+    /// is left as it was, so that loading goes on from the held state.
     pub fn relax(
         &mut self,
         steps: u64,
@@ -1257,15 +1275,43 @@ impl Triax {
         sink: &mut (impl FnMut(Event) + Send),
     ) -> Result<(), TriaxError> {
         let law = self.platen_law();
-        set_speeds(&mut self.world, &[0.0, 0.0]);
         let every = every.max(1);
+        let dt = self.world.dt;
+        let speed = if self.progress.phase == "loading" {
+            self.params.speed_up(self.progress.moving_for(&self.world))
+        } else {
+            0.0
+        };
+        let schedule = Schedule::of(&self.params);
+        let frame_every = self.params.frame_every;
+        let slowing = 2.0 * self.params.ramp / self.params.rate;
         on_pool(|| {
             for held in 1..=steps {
+                let t = (held - 1) as f64 * dt;
+                let f = if t < slowing {
+                    speed * 0.5 * (1.0 + (PI * t / slowing).cos())
+                } else {
+                    0.0
+                };
+                let [zb, zt] = self.platens();
+                let v = self.params.rate * (zt - zb) * f;
+                self.world.walls[BOTTOM].velocity = Vec3::z() * (0.5 * v);
+                self.world.walls[TOP].velocity = -Vec3::z() * (0.5 * v);
                 self.servo_cylinder(&law);
                 self.world.step();
                 if held % every == 0 || held == steps {
                     let m = self.measure();
                     self.check_contained()?;
+                    // Loading's measurements and frames due in the slowing down are passed
+                    // by, and loading goes on from rest.
+                    let strain = m.axial_strain;
+                    if strain >= schedule.due(self.progress.measures) {
+                        self.progress.measures = schedule.next_after(strain);
+                    }
+                    if strain >= self.progress.frames as f64 * frame_every {
+                        self.progress.frames = (strain / frame_every).floor() as u64 + 1;
+                    }
+                    self.progress.held_at = Some(self.world.step);
                     sink(Event::Measure(&m));
                     sink(Event::Frame(&self.world, &self.progress));
                 }
