@@ -90,5 +90,14 @@ paper-fabric: $(PAPER)/fabric-all.csv
 	  --ylabel "q/p from anisotropy (Eq. 19)" --ylabel "q/p from contacts (Eq. 9)" --ylabel "q/p from boundary (Eq. 20)" \
 	  --title "Fig. 18 at the paper's scale" < $< > $(PAPER)/fig18.png
 
-paper: paper-fabric
-.PHONY: paper-fabric
+# Each run's macro and micro results in a row, and the groups' table with the mean and standard
+# deviation over the seeds (out/paper/table.md), as the seed study's (pipelines/study-row.sh).
+$(PAPER)/runs.csv: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).fabric.csv)
+	$(call study_rows,$(PAPER),$(PAPER_RUNS)) > $@
+
+paper-table: $(PAPER)/runs.csv
+	pipelines/study-table.sh $< > $(PAPER)/table.md
+	cat $(PAPER)/table.md
+
+paper: paper-fabric paper-table
+.PHONY: paper-fabric paper-table

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The seed study's table by group: each column's mean and standard deviation over the seeds
-# (sample, n - 1), as a Markdown table on standard output (groups in their first order).
+# (sample, n - 1; a group of one seed has its value alone), as a Markdown table on standard
+# output (groups in their first order).
 # Usage: pipelines/study-table.sh RUNS.csv [COLUMNS]   (rows of pipelines/study-row.sh;
 #   COLUMNS: comma-separated names to show, by default every result column)
 set -euo pipefail
@@ -30,7 +31,8 @@ awk -F, -v want="${2:-}" '
       g = order[j]; printf "| %s (%d) |", g, n_[g]
       for (k = 1; k <= cols; k++) {
         i = show[k]; m = s[g, i] / n_[g]
-        v = n_[g] > 1 ? (ss[g, i] - n_[g] * m * m) / (n_[g] - 1) : 0; if (v < 0) v = 0
+        if (n_[g] == 1) { printf " %s |", num(m, 3); continue }
+        v = (ss[g, i] - n_[g] * m * m) / (n_[g] - 1); if (v < 0) v = 0
         printf " %s ± %s |", num(m, 3), num(sqrt(v), 2)
       }
       print ""

@@ -29,11 +29,15 @@ $(STUDY)/%.fabric.csv: $(STUDY)/%.triax.jsonl
 	fabric < $< > $@.part
 	mv $@.part $@
 
+# $(call study_rows,DIR,RUNS): the header and each run's row (pipelines/study-row.sh) of the
+# runs G-S in DIR, from DIR/G-S.triax.json and DIR/G-S.fabric.csv (also make paper's table).
+study_rows = ( pipelines/study-row.sh --header ; \
+  $(foreach r,$(2),pipelines/study-row.sh $(call group_name,$(word 1,$(subst -, ,$(r)))) \
+    $(word 2,$(subst -, ,$(r))) $(LEVEL_$(word 1,$(subst -, ,$(r)))) \
+    $(1)/$(r).triax.json $(1)/$(r).fabric.csv ;) )
+
 $(STUDY)/runs.csv: $(foreach r,$(STUDY_RUNS),$(STUDY)/$(r).fabric.csv)
-	( pipelines/study-row.sh --header ; \
-	  $(foreach r,$(STUDY_RUNS),pipelines/study-row.sh $(call group_name,$(word 1,$(subst -, ,$(r)))) \
-	    $(word 2,$(subst -, ,$(r))) $(LEVEL_$(word 1,$(subst -, ,$(r)))) \
-	    $(STUDY)/$(r).triax.json $(STUDY)/$(r).fabric.csv ;) ) > $@
+	$(call study_rows,$(STUDY),$(STUDY_RUNS)) > $@
 
 study: $(STUDY)/runs.csv
 	pipelines/study-table.sh $< > $(STUDY)/table.md
