@@ -576,10 +576,11 @@ fn the_rigid_boundary_holds_the_pressure_resumes_to_the_same_bytes_and_refuses_a
     );
 }
 
-/// A hold through the tool (`--hold`): from the frame at 1 % of strain, the platens stay where
-/// they are while the rigid boundary keeps the pressure; q and the unbalanced ratio fall and
-/// fewer contacts slide than in loading; resumed, the held stream loads on to the final strain,
-/// and the summary leaves the hold's measurements out. Bad --hold values are refused.
+/// A hold through the tool (`--hold`): from the frame at 1 % of strain, the platens slow down
+/// and stay where they are while the rigid boundary keeps the pressure; q and the unbalanced
+/// ratio fall and fewer contacts slide than in loading; resumed, the held stream loads on to the
+/// final strain, and the summary leaves the hold's measurements out. The membrane's hold, the
+/// same. Bad --hold values are refused.
 #[test]
 fn a_hold_keeps_the_platens_still_relaxes_the_specimen_and_loads_on_when_resumed() {
     let mut args = SHORT.to_vec();
@@ -655,6 +656,27 @@ fn a_hold_keeps_the_platens_still_relaxes_the_specimen_and_loads_on_when_resumed
     std::fs::remove_dir_all(&dir).ok();
     assert!(num(&s, "dilatancy_angle").is_finite(), "{s}");
     assert!(num(&s, "poisson_ratio").is_finite(), "{s}");
+    // The membrane's hold: the sleeve stays at the cell pressure, nothing escapes, q falls.
+    let mut args = SHORT.to_vec();
+    args.extend(["--stop-at", "0.01"]);
+    let part_m = ok("triax", &args, specimen());
+    let held_m = records(&ok(
+        "triax",
+        &["--hold", "4000", "--hold-every", "2000"],
+        &part_m,
+    ));
+    let before = records(&part_m);
+    let last_m = before
+        .iter()
+        .rev()
+        .find(|r| r["type"] == "measure")
+        .unwrap();
+    let measures: Vec<&serde_json::Value> =
+        held_m.iter().filter(|r| r["type"] == "measure").collect();
+    assert_eq!(measures.len(), 2);
+    assert_eq!(measures[0]["axial_strain"], measures[1]["axial_strain"]);
+    assert!(num(measures[1], "q_boundary") < num(last_m, "q_boundary"));
+    assert!(num(measures[1], "unbalanced") < num(last_m, "unbalanced"));
     // Bad input.
     fails("triax", &["--hold", "0"], &part, 2, &["--hold"]);
     fails(
