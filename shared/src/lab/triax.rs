@@ -1267,7 +1267,9 @@ impl Triax {
     /// still, while the lateral boundary stays at the pressure (the membrane's, or the rigid
     /// boundary on its servo), so that the specimen relaxes with nothing driven. A
     /// measurement and a frame go to `sink` every `every` steps and at the end; the progress
-    /// is left as it was, so that loading goes on from the held state.
+    /// passes by the measurements and frames the slowing down went by and records
+    /// [`Progress::held_at`], so that loading goes on from the held state, coming up to speed
+    /// again from rest.
     pub fn relax(
         &mut self,
         steps: u64,
