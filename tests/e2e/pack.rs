@@ -520,5 +520,17 @@ fn a_stopped_pack_takes_its_finished_compactions_from_the_journal_and_writes_the
         1,
         &["--journal", "journal line 2 is not a compaction"],
     );
+    // A run refused before any compaction leaves no journal behind.
+    let fresh = dir.join("never.journal");
+    let bad: Vec<&str> = (SOFT.iter().copied())
+        .chain([
+            "--relative-density",
+            "1.5",
+            "--journal",
+            fresh.to_str().unwrap(),
+        ])
+        .collect();
+    rejects(&bad, &nine, 2, &["--relative-density must be in [0, 1]"]);
+    assert!(!fresh.exists(), "a refused run left {}", fresh.display());
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -349,6 +349,35 @@ fn flagged(e: PackError) -> anyhow::Error {
 /// to the pressure on particles that rattle between them and never settle.
 const MIN_COUNT: usize = 6;
 
+/// The --journal file, opened for appending at its first line, so that a run that fails
+/// before a compaction is done leaves no file; the text past its last whole line (a line
+/// cut short by a stop) goes first.
+struct JournalFile {
+    path: std::path::PathBuf,
+    whole: u64,
+    file: Option<std::fs::File>,
+}
+
+impl Write for JournalFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.file.is_none() {
+            let file = std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(&self.path)?;
+            if file.metadata()?.len() > self.whole {
+                file.set_len(self.whole)?;
+            }
+            self.file = Some(file);
+        }
+        self.file.as_mut().map_or(Ok(0), |f| f.write(buf))
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.as_mut().map_or(Ok(()), |f| f.flush())
+    }
+}
+
 fn run(args: Cli) -> anyhow::Result<()> {
     cli::check_output(args.summary.as_deref(), "--summary")?;
     cli::check_output(args.journal.as_deref(), "--journal")?;
@@ -438,30 +467,29 @@ fn run(args: Cli) -> anyhow::Result<()> {
         }
     };
     let mut runs = Runs::new(total, [params.prep_unbalanced, params.unbalanced]);
-    let (journal_text, mut journal_file) = match &args.journal {
-        Some(path) => {
-            let text = match std::fs::read_to_string(path) {
-                Ok(t) => t,
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => String::new(),
-                Err(e) => {
-                    return Err(e).with_context(|| format!("reading --journal {}", path.display()))
-                }
-            };
-            let file = std::fs::OpenOptions::new()
-                .create(true)
-                .append(true)
-                .open(path)
-                .with_context(|| format!("opening --journal {}", path.display()))?;
-            // A last line cut short by a stop goes, so that the next line starts afresh.
-            let whole = text.rfind('\n').map_or(0, |i| i + 1);
-            if whole < text.len() {
-                file.set_len(whole as u64)
-                    .with_context(|| format!("cutting --journal {}", path.display()))?;
-            }
-            (text, Some(file))
+    if let Some((lo, hi)) = limits {
+        if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo < hi) {
+            return Err(cli::usage(format!(
+                "--void-ratio-limits must be 0 < E_MIN < E_MAX, got {lo},{hi}"
+            )));
         }
-        None => (String::new(), None),
+    }
+    let journal_text = match &args.journal {
+        Some(path) => match std::fs::read_to_string(path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => String::new(),
+            Err(e) => {
+                return Err(e).with_context(|| format!("reading --journal {}", path.display()))
+            }
+        },
+        None => String::new(),
     };
+    let mut journal_file = args.journal.as_ref().map(|path| JournalFile {
+        path: path.clone(),
+        // A last line cut short by a stop goes, so that the next line starts afresh.
+        whole: journal_text.rfind('\n').map_or(0, |i| i + 1) as u64,
+        file: None,
+    });
     let mut journal = pack::Journal::new(
         &journal_text,
         journal_file.as_mut().map(|f| f as &mut dyn Write),
@@ -470,13 +498,6 @@ fn run(args: Cli) -> anyhow::Result<()> {
         Some(path) => anyhow::anyhow!("--journal {}: {e}", path.display()),
         None => e.into(),
     })?;
-    if let Some((lo, hi)) = limits {
-        if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo < hi) {
-            return Err(cli::usage(format!(
-                "--void-ratio-limits must be 0 < E_MIN < E_MAX, got {lo},{hi}"
-            )));
-        }
-    }
     if args.limits_only {
         let l = pack::void_limits(
             &shapes,
