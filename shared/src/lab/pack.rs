@@ -723,7 +723,6 @@ fn compacted(
     };
     let key = journal.key(templates, &q);
     if let Some(&found) = journal.done.get(&key) {
-        journal.reused.push(friction);
         report(
             friction,
             &Status {
@@ -757,8 +756,6 @@ pub const REUSED: &str = "journal";
 pub struct Journal<'a> {
     done: HashMap<String, (usize, f64)>,
     sink: Option<&'a mut dyn std::io::Write>,
-    /// The frictions of the compactions taken from the journal, in the order asked for.
-    pub reused: Vec<f64>,
 }
 
 /// One compaction in a [`Journal`].
@@ -798,11 +795,7 @@ impl<'a> Journal<'a> {
                 }
             }
         }
-        Ok(Journal {
-            done,
-            sink,
-            reused: Vec::new(),
-        })
+        Ok(Journal { done, sink })
     }
 
     /// The key of a compaction of `templates` under `p`: FNV-1a over each template's name,

@@ -1251,14 +1251,19 @@ impl Triax {
             if self.world.step % LOADING_REPORT == 0 {
                 sink(Event::Loading(self.world.step, strain));
             }
-            let v = self.params.rate
-                * (zt - zb)
-                * self.params.speed_up(self.progress.moving_for(&self.world));
-            self.world.walls[BOTTOM].velocity = Vec3::z() * (0.5 * v);
-            self.world.walls[TOP].velocity = -Vec3::z() * (0.5 * v);
+            self.drive_platens(self.params.speed_up(self.progress.moving_for(&self.world)));
             self.servo_cylinder(&law);
             self.world.step();
         })
+    }
+
+    /// The platens approaching each other at `fraction` of the loading speed, the rate times
+    /// the specimen's height, each at half of it.
+    fn drive_platens(&mut self, fraction: f64) {
+        let [zb, zt] = self.platens();
+        let v = self.params.rate * (zt - zb) * fraction;
+        self.world.walls[BOTTOM].velocity = Vec3::z() * (0.5 * v);
+        self.world.walls[TOP].velocity = -Vec3::z() * (0.5 * v);
     }
 
     /// A hold from where the test is, `steps` steps in all: the platens slow down from
@@ -1295,10 +1300,7 @@ impl Triax {
                 } else {
                     0.0
                 };
-                let [zb, zt] = self.platens();
-                let v = self.params.rate * (zt - zb) * f;
-                self.world.walls[BOTTOM].velocity = Vec3::z() * (0.5 * v);
-                self.world.walls[TOP].velocity = -Vec3::z() * (0.5 * v);
+                self.drive_platens(f);
                 self.servo_cylinder(&law);
                 self.world.step();
                 if held % every == 0 || held == steps {
