@@ -14,7 +14,9 @@ PAPER_SPECIMEN ?= --diameter 0.3 --height 0.6 --size-min 0.01 --size-max 0.04 --
 # its Eq. 20 q carries the stretched sleeve's growing confinement; the paper's 0.5 /s reads q
 # 6-15 % of peak q above converged (I_P, rigid).
 PAPER_TRIAX ?= --boundary rigid --rate 0.0625 --final-strain 0.15
-PAPER_RUNS ?= $(foreach g,$(PAPER_GROUPS),$(foreach s,$(PAPER_SEEDS),$(g)-$(s)))
+# Seed by seed: a `make -j N paper` stopped part way has every group's first seed before any
+# group's second.
+PAPER_RUNS ?= $(foreach s,$(PAPER_SEEDS),$(foreach g,$(PAPER_GROUPS),$(g)-$(s)))
 limits = $(shell awk -F, '$$1 == "$(1)" {print $$2 "," $$3}' pipelines/limits.csv)
 
 .SECONDARY: $(foreach r,$(PAPER_RUNS),$(PAPER)/$(r).spec.jsonl)
