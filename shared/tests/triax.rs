@@ -56,7 +56,10 @@ fn a_packed_specimen_is_at_rest_rattlers_and_all() {
         moving = w.bodies.iter().filter(|b| b.vel.norm() > 0.0).count();
     })
     .unwrap();
-    assert!(moving > 0, "no body moved in the last step of the preparation");
+    assert!(
+        moving > 0,
+        "no body moved in the last step of the preparation"
+    );
     for (i, b) in w.bodies.iter().enumerate() {
         assert_eq!(b.vel.norm(), 0.0, "body {i} moves at {:?}", b.vel);
         assert_eq!(b.ang_mom.norm(), 0.0, "body {i} spins: {:?}", b.ang_mom);
