@@ -565,7 +565,8 @@ pub fn consolidate(
 /// without contacts (a rattler, a fifth of a dense specimen of 10-40 mm) keeps the speed and
 /// spin the compaction left it, some 1 cm/s against the network's 2e-5 m/s at the paper's
 /// scale, and turns freely through a test: the mean rotation then grows with the test's
-/// duration rather than its strain (docs/models/pack.md, "The steps").
+/// duration rather than its strain (docs/models/pack.md, "The specimen at rest").
+///
 /// The kinetic energy taken out counts as damped, so that the ledger's balance does not move.
 fn at_rest(w: &mut World) {
     let kinetic: f64 = w.bodies.iter().map(|b| b.kinetic_energy()).sum();
